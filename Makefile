@@ -1,0 +1,29 @@
+# Two entry points: `make demo` and `make test`. Both build .venv when missing.
+PYTHON ?= python3
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+# mediapipe's declared pins would downgrade numpy and pull GUI OpenCV and jax;
+# its real runtime dependencies come from the project's `pose` extra instead.
+MEDIAPIPE := mediapipe==0.10.21
+export NUMBA_CACHE_DIR := $(CURDIR)/$(VENV)/numba-cache
+
+.PHONY: demo test install clean
+
+install: $(STAMP)
+
+$(STAMP): pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --upgrade pip
+	$(PY) -m pip install -e ".[pose,test]"
+	$(PY) -m pip install --no-deps $(MEDIAPIPE)
+	touch $@
+
+demo: $(STAMP)
+	$(VENV)/bin/dancesynth demo --out demo_output
+
+test: $(STAMP)
+	$(PY) -m pytest -q
+
+clean:
+	rm -rf $(VENV) demo_output

@@ -1,0 +1,1 @@
+"""One module per `dancesynth` subcommand (see apps.cli)."""
