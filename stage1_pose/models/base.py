@@ -66,7 +66,7 @@ class Stage1Method(nn.Module, abc.ABC):
     def load_curriculum_state(self, state: dict[str, Any]) -> None:
         """Restore what :meth:`curriculum_state` returned."""
 
-    def optimize(self, name: str, loss: torch.Tensor, params: list[torch.nn.Parameter] | None = None) -> None:
+    def optimize(self, name: str, loss: torch.Tensor) -> None:
         """zero_grad, backward, (distributed gradient averaging), step for optimizer ``name``."""
         opt = self._optimizers[name]
         opt.zero_grad(set_to_none=True)
