@@ -1,0 +1,1 @@
+"""Stage-2 appearance models (pose map -> frame of the target person)."""

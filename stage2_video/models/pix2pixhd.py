@@ -1,0 +1,261 @@
+"""pix2pixHD (Wang et al. 2018) with Everybody Dance Now's temporal smoothing (Chan et al. 2019).
+
+Images are ``[B, C, H, W]`` float tensors in [-1, 1]. The generator maps a skeleton label map (3 channels,
+OpenPose colours) concatenated with the previous generated frame (3 channels; zeros for the first frame)
+to an RGB frame. The spatial discriminator judges (label map, frame) pairs; the temporal discriminator judges
+two consecutive pairs stacked on the channel axis. H and W must be divisible by ``2 ** n_downsample``
+(times 2 with the local enhancer).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from stage1_pose.errors import DancesynthError
+
+LABEL_CHANNELS = 3
+IMAGE_CHANNELS = 3
+
+
+@dataclass
+class Pix2PixHDConfig:
+    """Network sizes, loss weights and optimisation settings.
+
+    Attributes:
+        width, height: model resolution in pixels (frames and label maps are letterboxed to it).
+        ngf: generator filters in the first layer; doubled at each downsampling.
+        n_downsample: stride-2 convolutions in the global generator.
+        n_blocks: residual blocks at the global generator's bottleneck.
+        local_enhancer: add pix2pixHD's local enhancer, so the global generator runs at half resolution.
+        n_blocks_local: residual blocks in the local enhancer.
+        ndf, n_layers_d, num_d: PatchGAN filters, strided layers and number of scales.
+        temporal: Everybody Dance Now smoothing (previous frame as input, temporal discriminator).
+        lambda_feat, lambda_vgg: weights of discriminator feature matching and the VGG19 perceptual loss.
+        lambda_l1: pixel L1 weight; 0 in the paper. The CPU preset uses it because the VGG loss, which
+            supplies pix2pixHD's reconstruction signal, needs ImageNet weights that cannot be downloaded here.
+        lr, beta1: Adam settings for generator and discriminators.
+        batch_size: consecutive-frame pairs per step.
+        epochs_constant, epochs_decay: epochs at constant lr, then epochs with lr decaying linearly to 0.
+        val_fraction: the last fraction of the video held out for validation.
+    """
+
+    width: int = 128
+    height: int = 128
+    ngf: int = 32
+    n_downsample: int = 3
+    n_blocks: int = 9
+    local_enhancer: bool = False
+    n_blocks_local: int = 3
+    ndf: int = 32
+    n_layers_d: int = 3
+    num_d: int = 2
+    temporal: bool = True
+    lambda_feat: float = 10.0
+    lambda_vgg: float = 10.0
+    lambda_l1: float = 10.0
+    lr: float = 2e-4
+    beta1: float = 0.5
+    batch_size: int = 4
+    epochs_constant: int = 100
+    epochs_decay: int = 100
+    val_fraction: float = 0.15
+
+    def __post_init__(self) -> None:
+        factor = 2 ** (self.n_downsample + int(self.local_enhancer))
+        if self.width % factor or self.height % factor:
+            raise DancesynthError(
+                f"Model size {self.width}x{self.height} must be divisible by {factor} for this generator; "
+                "choose a multiple of it.")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Pix2PixHDConfig":
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: v for k, v in d.items() if k in names})
+
+
+PRESETS: dict[str, Pix2PixHDConfig] = {
+    # CPU: global generator only, trains in minutes on a short video.
+    "small": Pix2PixHDConfig(),
+    # Published pix2pixHD 1024p / Everybody Dance Now settings (GPU): 1024x512 with the local enhancer, whose
+    # global generator runs at 512x256 with 2 * ngf = 64 filters, 4 downsamplings and 9 blocks.
+    "paper": Pix2PixHDConfig(width=1024, height=512, ngf=32, n_downsample=4, n_blocks=9, local_enhancer=True,
+                             ndf=64, lambda_l1=0.0, batch_size=1),
+}
+
+
+def preset(name: str, **overrides) -> Pix2PixHDConfig:
+    """A copy of preset ``name`` with some fields replaced."""
+    if name not in PRESETS:
+        raise DancesynthError(f"Unknown preset {name!r}; choose one of {', '.join(PRESETS)}.")
+    return Pix2PixHDConfig(**{**PRESETS[name].to_dict(), **overrides})
+
+
+class ResnetBlock(nn.Module):
+    """Two reflection-padded 3x3 convolutions with instance norm and a skip connection."""
+
+    def __init__(self, channels: int) -> None:
+        super().__init__()
+        self.block = nn.Sequential(
+            nn.ReflectionPad2d(1), nn.Conv2d(channels, channels, 3), nn.InstanceNorm2d(channels), nn.ReLU(True),
+            nn.ReflectionPad2d(1), nn.Conv2d(channels, channels, 3), nn.InstanceNorm2d(channels),
+        )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return x + self.block(x)
+
+
+def _down(cin: int, cout: int) -> list[nn.Module]:
+    return [nn.Conv2d(cin, cout, 3, stride=2, padding=1), nn.InstanceNorm2d(cout), nn.ReLU(True)]
+
+
+def _up(cin: int, cout: int) -> list[nn.Module]:
+    return [nn.ConvTranspose2d(cin, cout, 3, stride=2, padding=1, output_padding=1), nn.InstanceNorm2d(cout),
+            nn.ReLU(True)]
+
+
+def _stem(cin: int, cout: int) -> list[nn.Module]:
+    return [nn.ReflectionPad2d(3), nn.Conv2d(cin, cout, 7), nn.InstanceNorm2d(cout), nn.ReLU(True)]
+
+
+def _head(cin: int) -> list[nn.Module]:
+    return [nn.ReflectionPad2d(3), nn.Conv2d(cin, IMAGE_CHANNELS, 7), nn.Tanh()]
+
+
+class GlobalGenerator(nn.Module):
+    """pix2pixHD's G1: stem, ``n_downsample`` strided convs, ``n_blocks`` residual blocks, mirrored upsampling.
+
+    ``[B, in_channels, H, W]`` -> ``[B, 3, H, W]`` in [-1, 1].
+    """
+
+    def __init__(self, in_channels: int, ngf: int, n_downsample: int, n_blocks: int) -> None:
+        super().__init__()
+        layers = _stem(in_channels, ngf)
+        for i in range(n_downsample):
+            layers += _down(ngf * 2 ** i, ngf * 2 ** (i + 1))
+        bottleneck = ngf * 2 ** n_downsample
+        layers += [ResnetBlock(bottleneck) for _ in range(n_blocks)]
+        for i in range(n_downsample, 0, -1):
+            layers += _up(ngf * 2 ** i, ngf * 2 ** (i - 1))
+        self.features = nn.Sequential(*layers)
+        self.head = nn.Sequential(*_head(ngf))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.head(self.features(x))
+
+
+class LocalEnhancer(nn.Module):
+    """pix2pixHD's G2: a full-resolution branch whose features are added to G1's (run at half resolution).
+
+    ``[B, in_channels, H, W]`` -> ``[B, 3, H, W]`` in [-1, 1].
+    """
+
+    def __init__(self, in_channels: int, ngf: int, n_downsample: int, n_blocks: int, n_blocks_local: int) -> None:
+        super().__init__()
+        self.global_generator = GlobalGenerator(in_channels, ngf * 2, n_downsample, n_blocks)
+        self.local_down = nn.Sequential(*_stem(in_channels, ngf), *_down(ngf, ngf * 2))
+        self.local_up = nn.Sequential(*[ResnetBlock(ngf * 2) for _ in range(n_blocks_local)], *_up(ngf * 2, ngf),
+                                      *_head(ngf))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        half = F.avg_pool2d(x, 3, stride=2, padding=1, count_include_pad=False)
+        return self.local_up(self.local_down(x) + self.global_generator.features(half))
+
+
+class NLayerDiscriminator(nn.Module):
+    """70x70-style PatchGAN; :meth:`forward` returns every layer's output (the last is the patch score map)."""
+
+    def __init__(self, in_channels: int, ndf: int, n_layers: int) -> None:
+        super().__init__()
+        layers = [nn.Sequential(nn.Conv2d(in_channels, ndf, 4, stride=2, padding=2), nn.LeakyReLU(0.2, True))]
+        nf = ndf
+        for i in range(1, n_layers + 1):
+            prev, nf = nf, min(nf * 2, 512)
+            stride = 2 if i < n_layers else 1
+            layers.append(nn.Sequential(nn.Conv2d(prev, nf, 4, stride=stride, padding=2), nn.InstanceNorm2d(nf),
+                                        nn.LeakyReLU(0.2, True)))
+        layers.append(nn.Sequential(nn.Conv2d(nf, 1, 4, stride=1, padding=2)))
+        self.layers = nn.ModuleList(layers)
+
+    def forward(self, x: torch.Tensor) -> list[torch.Tensor]:
+        outs = []
+        for layer in self.layers:
+            x = layer(x)
+            outs.append(x)
+        return outs
+
+
+class MultiscaleDiscriminator(nn.Module):
+    """``num_d`` PatchGANs on the input downsampled by 1, 2, 4, ...; returns one feature list per scale."""
+
+    def __init__(self, in_channels: int, ndf: int, n_layers: int, num_d: int) -> None:
+        super().__init__()
+        self.scales = nn.ModuleList(NLayerDiscriminator(in_channels, ndf, n_layers) for _ in range(num_d))
+
+    def forward(self, x: torch.Tensor) -> list[list[torch.Tensor]]:
+        outs = []
+        for i, d in enumerate(self.scales):
+            if i:
+                x = F.avg_pool2d(x, 3, stride=2, padding=1, count_include_pad=False)
+            outs.append(d(x))
+        return outs
+
+
+def build_generator(config: Pix2PixHDConfig) -> nn.Module:
+    """The generator the config describes; input channels = label (+ previous frame when temporal)."""
+    cin = LABEL_CHANNELS + (IMAGE_CHANNELS if config.temporal else 0)
+    if config.local_enhancer:
+        return LocalEnhancer(cin, config.ngf, config.n_downsample, config.n_blocks, config.n_blocks_local)
+    return GlobalGenerator(cin, config.ngf, config.n_downsample, config.n_blocks)
+
+
+class Pix2PixHD(nn.Module):
+    """Generator plus (for training) spatial and temporal multiscale discriminators.
+
+    Only ``generator`` is needed to render; the discriminators are kept in the same module so one
+    checkpoint resumes training exactly.
+    """
+
+    def __init__(self, config: Pix2PixHDConfig) -> None:
+        super().__init__()
+        self.config = config
+        self.generator = build_generator(config)
+        pair = LABEL_CHANNELS + IMAGE_CHANNELS
+        self.discriminator = MultiscaleDiscriminator(pair, config.ndf, config.n_layers_d, config.num_d)
+        self.temporal_discriminator = (
+            MultiscaleDiscriminator(2 * pair, config.ndf, config.n_layers_d, config.num_d) if config.temporal else None)
+
+    def generate(self, label: torch.Tensor, previous: torch.Tensor | None = None) -> torch.Tensor:
+        """``[B, 3, H, W]`` label map (+ previous frame, zeros when None) -> ``[B, 3, H, W]`` frame in [-1, 1]."""
+        if self.config.temporal:
+            if previous is None:
+                previous = torch.zeros_like(label)
+            label = torch.cat([label, previous], dim=1)
+        return self.generator(label)
+
+
+def lsgan_loss(outputs: list[list[torch.Tensor]], target_is_real: bool) -> torch.Tensor:
+    """Least-squares GAN loss on the last output of every scale, averaged over scales."""
+    target = 1.0 if target_is_real else 0.0
+    losses = [F.mse_loss(scale[-1], torch.full_like(scale[-1], target)) for scale in outputs]
+    return torch.stack(losses).mean()
+
+
+def feature_matching_loss(fake: list[list[torch.Tensor]], real: list[list[torch.Tensor]], n_layers: int,
+                          weight: float) -> torch.Tensor:
+    """pix2pixHD's discriminator feature matching: L1 between intermediate features (real ones detached),
+
+    weighted ``4 / (n_layers + 1)`` per layer and ``1 / num_d`` per scale, times ``weight`` (lambda_feat).
+    """
+    num_d = len(fake)
+    loss = fake[0][0].new_zeros(())
+    for fake_scale, real_scale in zip(fake, real):
+        for f, r in zip(fake_scale[:-1], real_scale[:-1]):
+            loss = loss + (4.0 / (n_layers + 1)) * (1.0 / num_d) * F.l1_loss(f, r.detach())
+    return loss * weight

@@ -1,0 +1,73 @@
+import pytest
+import torch
+
+from stage1_pose.errors import DancesynthError
+from stage2_video.models.pix2pixhd import (
+    LocalEnhancer, Pix2PixHD, feature_matching_loss, lsgan_loss, preset)
+from stage2_video.vgg import NOTICE, VGGLoss, build_vgg_loss
+
+
+def _tiny(**kw):
+    return preset("small", width=32, height=32, ngf=4, n_downsample=2, n_blocks=1, ndf=4, **kw)
+
+
+@pytest.mark.parametrize("local", [False, True])
+def test_generator_and_discriminator_shapes(local):
+    cfg = _tiny(local_enhancer=local)
+    model = Pix2PixHD(cfg)
+    assert isinstance(model.generator, LocalEnhancer) == local
+    label = torch.rand(2, 3, 32, 32) * 2 - 1
+    frame = model.generate(label)
+    assert frame.shape == (2, 3, 32, 32) and frame.abs().max() <= 1
+    assert model.generate(label, frame).shape == frame.shape
+    spatial = model.discriminator(torch.cat([label, frame], 1))
+    assert len(spatial) == cfg.num_d and len(spatial[0]) == cfg.n_layers_d + 2
+    assert spatial[0][-1].shape[1] == 1
+    temporal = model.temporal_discriminator(torch.cat([label, label, frame, frame], 1))
+    assert len(temporal) == cfg.num_d
+
+
+def test_size_must_divide_by_downsampling():
+    with pytest.raises(DancesynthError, match="divisible by 8"):
+        preset("small", width=100, height=128)
+    with pytest.raises(DancesynthError, match="Unknown preset"):
+        preset("huge")
+
+
+def test_paper_preset_is_published_pix2pixhd():
+    cfg = preset("paper")
+    assert cfg.local_enhancer and cfg.n_downsample == 4 and cfg.n_blocks == 9 and cfg.ngf * 2 == 64
+    assert (cfg.ndf, cfg.n_layers_d, cfg.num_d, cfg.lambda_feat, cfg.lambda_vgg) == (64, 3, 2, 10.0, 10.0)
+
+
+def test_lsgan_and_feature_matching_losses():
+    real = [[torch.ones(1, 2, 4, 4), torch.ones(1, 1, 3, 3)] for _ in range(2)]
+    fake = [[torch.zeros(1, 2, 4, 4), torch.zeros(1, 1, 3, 3)] for _ in range(2)]
+    assert lsgan_loss(real, True).item() == 0.0
+    assert lsgan_loss(fake, True).item() == pytest.approx(1.0)
+    assert lsgan_loss(fake, False).item() == 0.0
+    # one intermediate layer per scale, |diff| = 1: 2 scales * (4 / (3 + 1)) * (1 / 2) * 1 * lambda 10 = 10
+    assert feature_matching_loss(fake, real, n_layers=3, weight=10.0).item() == pytest.approx(10.0)
+    assert feature_matching_loss(real, real, n_layers=3, weight=10.0).item() == 0.0
+
+
+def test_vgg_off_with_visible_notice(capsys, monkeypatch):
+    import stage2_video.vgg as vgg
+    monkeypatch.setattr(vgg, "_notice_shown", False)
+    assert build_vgg_loss(None) is None
+    assert build_vgg_loss(None) is None
+    err = capsys.readouterr().err
+    assert err.count(NOTICE) == 1
+
+
+def test_vgg_loads_local_weights(tmp_path):
+    from torchvision.models.vgg import cfgs, make_layers
+    path = tmp_path / "vgg19.pth"
+    torch.save({f"features.{k}": v for k, v in make_layers(cfgs["E"]).state_dict().items()}, path)
+    loss = build_vgg_loss(path)
+    assert isinstance(loss, VGGLoss)
+    x = torch.rand(1, 3, 32, 32) * 2 - 1
+    assert loss(x, x).item() == 0.0
+    assert loss(x, -x).item() > 0
+    with pytest.raises(DancesynthError, match="does not exist"):
+        build_vgg_loss(tmp_path / "missing.pth")
