@@ -1,0 +1,56 @@
+"""Temporal smoothing of extracted poses."""
+
+import numpy as np
+import pytest
+
+from stage1_pose.errors import DancesynthError
+from stage1_pose.skeleton import PoseSequence
+from stage2_video.smoothing import SmoothingConfig, smooth
+
+FPS = 30.0
+
+
+def noisy_walk(seed: int = 0, frames: int = 90) -> tuple[PoseSequence, np.ndarray]:
+    """Every joint moves on a smooth curve (pixels) plus 3 px Gaussian jitter; returns (noisy, clean xy)."""
+    t = np.arange(frames) / FPS
+    clean = np.zeros((frames, 25, 2))
+    clean[..., 0] = 200 + 80 * np.sin(2 * np.pi * 0.5 * t)[:, None] + np.arange(25) * 4
+    clean[..., 1] = 150 + 40 * np.cos(2 * np.pi * 0.3 * t)[:, None]
+    noise = np.random.default_rng(seed).normal(0, 3, clean.shape)
+    kp = np.concatenate([clean + noise, np.ones((frames, 25, 1))], axis=-1)
+    return PoseSequence(kp, FPS, 480, 360), clean
+
+
+# Savitzky-Golay has no lag, so it also gets closer to the clean curve; One-Euro trades its lag for less
+# jitter and must at least not end up much farther from the curve than the raw input.
+@pytest.mark.parametrize("method, max_error_ratio", [("savgol", 0.8), ("one-euro", 1.1)])
+def test_smoothing_removes_jitter_but_keeps_motion(method, max_error_ratio):
+    seq, clean = noisy_walk()
+    out = smooth(seq, SmoothingConfig(method))
+    assert out.keypoints.shape == seq.keypoints.shape and (out.fps, out.width, out.height) == (FPS, 480, 360)
+    before = np.abs(seq.xy - clean).mean()
+    after = np.abs(out.xy - clean).mean()
+    assert after < max_error_ratio * before
+    # Frame-to-frame jitter (second difference) drops a lot while the 160 px swing survives.
+    assert np.abs(np.diff(out.xy, 2, axis=0)).mean() < 0.6 * np.abs(np.diff(seq.xy, 2, axis=0)).mean()
+    assert np.ptp(out.xy[:, 0, 0]) > 150
+
+
+def test_absent_joints_are_left_alone_and_none_is_identity():
+    seq, _ = noisy_walk(frames=40)
+    kp = seq.keypoints.copy()
+    kp[10:20, 3, 2] = 0
+    kp[10:20, 3, :2] = -1
+    seq = seq.replace(kp)
+    for method in ("savgol", "one-euro"):
+        out = smooth(seq, SmoothingConfig(method))
+        np.testing.assert_array_equal(out.keypoints[10:20, 3], kp[10:20, 3])
+        np.testing.assert_array_equal(out.confidence, seq.confidence)
+    np.testing.assert_array_equal(smooth(seq, SmoothingConfig("none")).keypoints, kp)
+
+
+def test_bad_smoothing_options_raise_clear_errors():
+    with pytest.raises(DancesynthError, match="Unknown smoothing 'gauss'"):
+        SmoothingConfig("gauss")
+    with pytest.raises(DancesynthError, match="must be positive"):
+        SmoothingConfig("one-euro", min_cutoff_hz=0)

@@ -1,0 +1,110 @@
+"""Person selection and tracking logic, with a scripted stand-in for BlazePose (no model needed)."""
+
+import numpy as np
+
+from stage1_pose.skeleton import JOINT_INDEX
+from stage2_video.tracking import Box, PersonTracker, choose_target, find_people, pose_box, torso
+
+J = JOINT_INDEX
+W, H = 640, 360
+
+
+def person(cx: float, cy: float, size: float) -> np.ndarray:
+    """A stick pose with its neck at (cx, cy) and a torso ``size`` pixels long."""
+    pose = np.zeros((25, 3), np.float32)
+    for name, (dx, dy) in {"Neck": (0, 0), "Nose": (0, -0.5), "RShoulder": (-0.5, 0), "LShoulder": (0.5, 0),
+                           "MidHip": (0, 1), "RHip": (-0.3, 1), "LHip": (0.3, 1)}.items():
+        pose[J[name]] = (cx + dx * size, cy + dy * size, 1.0)
+    return pose
+
+
+class ScriptedEstimator:
+    """Plays BlazePose on synthetic frames that carry their frame index in the red channel.
+
+    ``scenes[t]`` lists the people in frame t. ``detect`` returns the first listed person whose neck lies in
+    the searched box and has not been blanked out (green channel changed by :func:`find_people`); ``track``
+    returns ``tracked[t]`` when given, else behaves like ``detect``.
+    """
+
+    def __init__(self, scenes, tracked=None):
+        self.scenes, self.tracked = scenes, tracked or {}
+        self.resets = 0
+
+    def detect(self, frame, box=None):
+        t = int(frame[..., 0].max())
+        for pose in self.scenes[t]:
+            x, y = pose[J["Neck"], :2].astype(int)
+            inside = box is None or (abs(x - box.cx) < box.side / 2 and abs(y - box.cy) < box.side / 2)
+            if inside and 0 <= x < W and 0 <= y < H and frame[y, x, 1] == 255:
+                return pose
+        return None
+
+    def track(self, frame, box):
+        t = int(frame[..., 0].max())
+        return self.tracked[t] if t in self.tracked else self.detect(frame, box)
+
+    def reset(self):
+        self.resets += 1
+
+
+def frame(t: int) -> np.ndarray:
+    image = np.zeros((H, W, 3), np.uint8)
+    image[..., 0] = t
+    image[..., 1] = 255
+    image[0, 0, 1] = 0  # so the blanking colour (the mean) differs from 255
+    return image
+
+
+def run(tracker, n):
+    return [tracker.step(frame(t)) for t in range(n)]
+
+
+def test_pose_box_and_torso():
+    pose = person(100, 50, 40)
+    box = pose_box(pose)
+    assert (box.cx, box.cy, box.side) == (100, 60, 60)  # nose at y 30 to hips at y 90
+    neck, size = torso(pose)
+    np.testing.assert_allclose(neck, (100, 50))
+    assert size == 40
+    assert torso(np.zeros((25, 3), np.float32)) is None
+
+
+def test_find_people_finds_everyone_and_choose_target_prefers_large_and_central():
+    small_centre, big_corner, big_centre = person(330, 150, 30), person(60, 60, 70), person(420, 160, 70)
+    scenes = [[small_centre, big_corner, big_centre]]
+    people = find_people(frame(0), ScriptedEstimator(scenes))
+    assert [p[J["Neck"], 0] for p in people] == [330, 60, 420]
+    assert choose_target(people, W, H) is big_centre
+    assert choose_target([small_centre, big_corner], W, H) is big_corner
+    assert choose_target([], W, H) is None
+
+
+def test_jump_to_another_person_is_rejected_and_rescued():
+    target = [person(300 + 5 * t, 150, 60) for t in range(6)]
+    other = person(520, 150, 60)
+    scenes = [[target[t], other] for t in range(6)]
+    estimator = ScriptedEstimator(scenes, tracked={3: other})
+    tracker = PersonTracker(estimator, W, H)
+    poses = run(tracker, 6)
+    assert all(p is target[t] for t, p in enumerate(poses))
+    assert tracker.stats.jumps_rejected == 1 and tracker.stats.rescued == 1
+
+
+def test_lost_target_is_waited_for_and_reacquired_not_replaced():
+    target, other = person(300, 150, 60), person(560, 150, 45)
+    scenes = [[target, other]] * 3 + [[other]] * 6 + [[other, target]] * 3
+    tracker = PersonTracker(ScriptedEstimator(scenes), W, H)
+    poses = run(tracker, 12)
+    assert all(p is target for p in poses[:3] + poses[-3:])
+    assert all(p is None for p in poses[3:9])
+    assert tracker.stats.reacquired == 1 and tracker.stats.missing == 6
+
+
+def test_crop_follows_the_target_so_a_bigger_person_outside_it_is_never_taken():
+    target = [person(150 + 10 * t, 180, 40) for t in range(8)]
+    bigger = person(560, 180, 80)
+    # The bigger person is listed first: a whole-frame search would return them.
+    scenes = [[target[0]]] + [[bigger, target[t]] for t in range(1, 8)]
+    tracker = PersonTracker(ScriptedEstimator(scenes), W, H)
+    assert all(p is target[t] for t, p in enumerate(run(tracker, 8)))
+    assert Box(0, 0, 10).scaled(2).side == 20
