@@ -35,6 +35,7 @@ KIND_DESCRIPTIONS: dict[str, str] = {
     "stage1": "a pose model trained with `dancesynth train-pose`",
     "stage2": "an appearance model trained with `dancesynth train-video`",
     "stgcn": "an ST-GCN pose classifier trained with `dancesynth train-stgcn`",
+    "style_classifier": "a style classifier trained with `dancesynth train-style-classifier`",
 }
 
 

@@ -1,0 +1,174 @@
+"""Pose-sequence style classifier: the feature extractor behind FID, ACC, diversity and multimodality.
+
+As in Dance Revolution: an LSTM (hidden 200) reads a pose sequence and a linear layer gives logits over the
+dataset's styles; the time-averaged LSTM output is the 200-d feature. It reads fixed windows
+(``window_frames``, 4 s at 15 fps by default); a whole dance is cut into consecutive windows, so a dance
+gets one feature per window (for the long-term FID curve) and their mean as its feature.
+
+Input per frame: :func:`stage1_pose.skeleton.normalize` model coordinates (root position relative to the
+canvas centre and joints relative to the root, in torso lengths) and their frame-to-frame velocity, 100 values.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+import torch
+from torch import nn
+from tqdm import tqdm
+
+from stage1_pose.checkpoint import load_checkpoint, save_checkpoint
+from stage1_pose.errors import DancesynthError
+from stage1_pose.skeleton import NUM_JOINTS, PoseSequence, normalize
+
+KIND = "style_classifier"
+INPUT_DIM = NUM_JOINTS * 2 * 2
+
+
+@dataclass(frozen=True)
+class StyleClassifierConfig:
+    """Network size and training schedule.
+
+    ``window_frames`` is in pose frames; ``steps`` counts optimiser updates of ``batch_size`` windows.
+    """
+
+    hidden: int = 200
+    layers: int = 1
+    window_frames: int = 60
+    batch_size: int = 64
+    steps: int = 600
+    lr: float = 1e-3
+
+
+PRESETS: dict[str, StyleClassifierConfig] = {
+    "paper": StyleClassifierConfig(),
+    "small": StyleClassifierConfig(hidden=32, window_frames=30, batch_size=32, steps=150, lr=3e-3),
+}
+
+
+class StyleClassifier(nn.Module):
+    """``[B, T, INPUT_DIM]`` pose features -> (logits ``[B, styles]``, feature ``[B, hidden]``)."""
+
+    def __init__(self, config: StyleClassifierConfig, num_styles: int) -> None:
+        super().__init__()
+        self.config = config
+        self.lstm = nn.LSTM(INPUT_DIM, config.hidden, num_layers=config.layers, batch_first=True)
+        self.head = nn.Linear(config.hidden, num_styles)
+
+    def forward(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        out, _ = self.lstm(x)
+        feature = out.mean(dim=1)
+        return self.head(feature), feature
+
+
+def pose_features(seq: PoseSequence) -> np.ndarray:
+    """``[T, 100]`` float32 classifier input: normalised coordinates ``[T, 50]`` and their velocity ``[T, 50]``
+    (per frame, model units; the first frame's velocity is 0)."""
+    xy, _ = normalize(seq)
+    flat = xy.reshape(len(seq), -1)
+    vel = np.diff(flat, axis=0, prepend=flat[:1])
+    return np.concatenate([flat, vel], axis=1).astype(np.float32)
+
+
+def cut_windows(features: np.ndarray, window_frames: int) -> np.ndarray:
+    """``[T, F]`` -> ``[T // window_frames, window_frames, F]`` consecutive windows (the tail is dropped)."""
+    n = len(features) // window_frames
+    if n == 0:
+        raise DancesynthError(f"A dance of {len(features)} frames is shorter than the style classifier's window "
+                              f"of {window_frames} frames; evaluate longer dances (raise --seconds).")
+    return features[: n * window_frames].reshape(n, window_frames, features.shape[1])
+
+
+@dataclass
+class LoadedStyleClassifier:
+    """A trained classifier with what is needed to use it: style names and the feature standardisation."""
+
+    model: StyleClassifier
+    styles: list[str]
+    mean: np.ndarray
+    std: np.ndarray
+    device: torch.device
+
+    @property
+    def window_frames(self) -> int:
+        return self.model.config.window_frames
+
+    @torch.no_grad()
+    def embed_windows(self, seq: PoseSequence) -> tuple[np.ndarray, np.ndarray]:
+        """Per consecutive window: logits ``[W, styles]`` and features ``[W, hidden]`` (float64)."""
+        x = (cut_windows(pose_features(seq), self.window_frames) - self.mean) / self.std
+        self.model.eval()
+        logits, feats = self.model(torch.from_numpy(x.astype(np.float32)).to(self.device))
+        return logits.cpu().double().numpy(), feats.cpu().double().numpy()
+
+    def embed(self, seq: PoseSequence) -> tuple[int, np.ndarray, np.ndarray]:
+        """(predicted style index, dance feature ``[hidden]``, window features ``[W, hidden]``).
+
+        The dance's prediction is the argmax of its windows' mean logits; its feature the mean window feature.
+        """
+        logits, feats = self.embed_windows(seq)
+        return int(logits.mean(axis=0).argmax()), feats.mean(axis=0), feats
+
+
+def train_style_classifier(dances: list[PoseSequence], labels: list[int], styles: list[str],
+                           config: StyleClassifierConfig, device: torch.device, seed: int = 0,
+                           progress: bool = True) -> LoadedStyleClassifier:
+    """Train on random ``window_frames`` crops of labelled dances (label = index into ``styles``).
+
+    Cross-entropy, Adam; inputs standardised per dimension with statistics of all training frames.
+    """
+    if len(dances) != len(labels) or not dances:
+        raise DancesynthError("The style classifier needs at least one labelled dance; check the dataset's train split.")
+    feats = [pose_features(d) for d in dances]
+    w = config.window_frames
+    usable = [i for i, f in enumerate(feats) if len(f) >= w]
+    if not usable:
+        raise DancesynthError(f"Every training dance is shorter than the classifier window ({w} frames); "
+                              "build a dataset with longer clips.")
+    stacked = np.concatenate(feats, axis=0)
+    mean, std = stacked.mean(axis=0), stacked.std(axis=0) + 1e-6
+    rng = np.random.default_rng(seed)
+    torch.manual_seed(seed)
+    model = StyleClassifier(config, len(styles)).to(device)
+    opt = torch.optim.Adam(model.parameters(), lr=config.lr)
+    y_all = np.asarray(labels, dtype=np.int64)
+    model.train()
+    bar = tqdm(range(config.steps), desc="style classifier", disable=not progress)
+    for _ in bar:
+        clip = rng.choice(usable, size=config.batch_size)
+        x = np.stack([feats[c][s: s + w] for c, s in
+                      ((c, rng.integers(0, len(feats[c]) - w + 1)) for c in clip)])
+        xb = torch.from_numpy(((x - mean) / std).astype(np.float32)).to(device)
+        yb = torch.from_numpy(y_all[clip]).to(device)
+        logits, _ = model(xb)
+        loss = nn.functional.cross_entropy(logits, yb)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        bar.set_postfix(loss=f"{loss.item():.3f}")
+    return LoadedStyleClassifier(model, list(styles), mean, std, device)
+
+
+def save_style_classifier(run_dir: str | os.PathLike, clf: LoadedStyleClassifier,
+                          extra: dict[str, Any] | None = None) -> None:
+    """Save as a checkpoint of kind ``style_classifier`` (weights + config, styles and input statistics in JSON)."""
+    meta = {"kind": KIND, "config": asdict(clf.model.config), "styles": clf.styles,
+            "input_mean": clf.mean.tolist(), "input_std": clf.std.tolist(), **(extra or {})}
+    save_checkpoint(run_dir, clf.model, meta)
+
+
+def load_style_classifier(run_dir: str | os.PathLike, device: torch.device) -> LoadedStyleClassifier:
+    """Inverse of :func:`save_style_classifier`."""
+    state, meta = load_checkpoint(run_dir, KIND)
+    model = StyleClassifier(StyleClassifierConfig(**meta["config"]), len(meta["styles"]))
+    model.load_state_dict(state)
+    return LoadedStyleClassifier(model.to(device), list(meta["styles"]), np.asarray(meta["input_mean"]),
+                                 np.asarray(meta["input_std"]), device)
+
+
+def classifier_accuracy(clf: LoadedStyleClassifier, dances: list[PoseSequence], labels: list[int]) -> float:
+    """Share of dances whose predicted style equals the label (e.g. on the test split)."""
+    return float(np.mean([clf.embed(d)[0] == y for d, y in zip(dances, labels)]))

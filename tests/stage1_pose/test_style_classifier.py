@@ -1,0 +1,64 @@
+import dataclasses
+
+import numpy as np
+import pytest
+import torch
+
+from stage1_pose.errors import DancesynthError
+from stage1_pose.skeleton import PoseSequence
+from stage1_pose.style_classifier import (PRESETS, classifier_accuracy, load_style_classifier,
+                                          save_style_classifier, train_style_classifier)
+
+STANDING = np.array([[640, 200], [640, 250], [600, 250], [580, 320], [570, 380], [680, 250], [700, 320],
+                     [710, 380], [640, 400], [615, 400], [610, 500], [605, 600], [665, 400], [670, 500],
+                     [675, 600], [630, 190], [650, 190], [620, 195], [660, 195], [690, 610], [700, 610],
+                     [670, 605], [590, 610], [580, 610], [610, 605]], np.float32)
+
+
+def toy_dance(style: int, seed: int, frames: int = 90) -> PoseSequence:
+    """Style 0 waves the arms slowly, 1 bounces the whole body fast, 2 sways sideways."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(frames) / 15.0
+    phase = rng.uniform(0, 2 * np.pi)
+    amp = rng.uniform(0.8, 1.2)
+    xy = np.repeat(STANDING[None], frames, axis=0).copy()
+    if style == 0:
+        xy[:, [3, 4, 6, 7], 1] -= 60 * amp * np.sin(2 * np.pi * 0.5 * t + phase)[:, None]
+    elif style == 1:
+        xy[:, :, 1] += 25 * amp * np.sin(2 * np.pi * 2.5 * t + phase)[:, None]
+    else:
+        xy[:, :, 0] += 50 * amp * np.sin(2 * np.pi * 1.0 * t + phase)[:, None]
+    xy += rng.normal(scale=1.0, size=xy.shape)
+    kp = np.concatenate([xy, np.ones((frames, 25, 1), np.float32)], axis=-1)
+    return PoseSequence(kp, 15.0, 1280, 720)
+
+
+def test_classifier_learns_separable_toy_styles_and_round_trips(tmp_path):
+    styles = ["wave", "bounce", "sway"]
+    train = [(toy_dance(s, seed), s) for seed in range(8) for s in range(3)]
+    test = [(toy_dance(s, 100 + seed), s) for seed in range(4) for s in range(3)]
+    clf = train_style_classifier([d for d, _ in train], [y for _, y in train], styles, PRESETS["small"],
+                                 torch.device("cpu"), progress=False)
+    acc = classifier_accuracy(clf, [d for d, _ in test], [y for _, y in test])
+    assert acc >= 0.9
+
+    pred, feature, windows = clf.embed(test[0][0])
+    assert feature.shape == (PRESETS["small"].hidden,)
+    assert windows.shape == (90 // PRESETS["small"].window_frames, PRESETS["small"].hidden)
+
+    save_style_classifier(tmp_path / "clf", clf)
+    again = load_style_classifier(tmp_path / "clf", torch.device("cpu"))
+    assert again.styles == styles
+    np.testing.assert_allclose(again.embed(test[0][0])[1], feature, rtol=1e-5, atol=1e-6)
+
+
+def test_too_short_dance_is_a_user_error():
+    config = dataclasses.replace(PRESETS["small"], steps=1)
+    clf = train_style_classifier([toy_dance(0, 0)], [0], ["a"], config, torch.device("cpu"), progress=False)
+    with pytest.raises(DancesynthError, match="shorter than the style classifier's window"):
+        clf.embed(toy_dance(0, 1, frames=10))
+
+
+def test_loading_a_wrong_folder_is_a_user_error(tmp_path):
+    with pytest.raises(DancesynthError):
+        load_style_classifier(tmp_path / "missing", torch.device("cpu"))
