@@ -1,0 +1,43 @@
+"""`dancesynth render`: pose sequence -> video of the target person."""
+
+from __future__ import annotations
+
+import argparse
+
+NAME = "render"
+HELP = "render a pose sequence as a video of the person a train-video model learned"
+DESCRIPTION = """\
+Render POSES (a dancesynth .npz pose file, e.g. from `dancesynth generate` or `dancesynth extract-poses`) with
+an appearance model trained by `dancesynth train-video`. The poses are first normalised onto the target
+video (Everybody Dance Now: scale and position from ankle heights and body size; --no-normalize skips it,
+for poses already on the target's canvas). Frames are streamed to the H.264 encoder at the poses' fps, at the
+model's resolution; --audio muxes a song (trimmed to the video length).
+
+examples:
+  dancesynth render dance.npz --model runs/person --out dance.mp4 --audio song.mp3
+  dancesynth render runs/person/poses.npz --model runs/person --out replay.mp4 --no-normalize
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("poses", metavar="POSES", help="pose file (.npz, BODY_25)")
+    parser.add_argument("--model", required=True, metavar="RUN_DIR", help="run folder written by train-video")
+    parser.add_argument("--out", required=True, metavar="VIDEO.mp4", help="output video")
+    parser.add_argument("--audio", metavar="SONG", help="audio file to mux (any FFmpeg format)")
+    parser.add_argument("--no-normalize", action="store_true", help="use the poses as they are (target canvas)")
+    parser.add_argument("--no-optimize", action="store_true", help="plain PyTorch forward (slower, for debugging)")
+    parser.add_argument("--device", default="auto", help="auto, cpu or cuda")
+
+
+def run(args: argparse.Namespace) -> None:
+    from stage1_pose.media import decode_audio
+    from stage1_pose.skeleton import PoseSequence
+    from stage2_video.infer import load_appearance_model, render_video
+
+    poses = PoseSequence.load(args.poses)
+    model = load_appearance_model(args.model, args.device, optimize=not args.no_optimize)
+    audio_sr = 44100
+    audio = decode_audio(args.audio, audio_sr) if args.audio else None
+    path = render_video(poses, model, args.out, audio=audio, audio_sr=audio_sr if audio is not None else None,
+                        normalize=not args.no_normalize)
+    print(f"wrote {path}: {len(poses)} frames at {poses.fps:g} fps, {model.config.width}x{model.config.height}")

@@ -1,0 +1,128 @@
+"""Training data for the appearance model from ONE video of the target person.
+
+The frames are framed (crop + resize + pad, see :mod:`stage2_video.render`) once and cached in the run folder
+as a uint8 ``.npy`` memory map, so memory stays flat for long videos and resuming skips the decoding. Poses
+are cached as ``poses.npz``. The split is by time: the last ``val_fraction`` of the video is held out.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch.utils.data import Dataset
+from tqdm import tqdm
+
+from stage1_pose.errors import DancesynthError
+from stage1_pose.fileio import atomic_path
+from stage1_pose.media import probe_video, read_frames
+from stage1_pose.skeleton import PoseSequence
+from stage2_video.render import Framing, label_map
+
+POSES_FILE = "poses.npz"
+
+
+def frames_file(framing: Framing) -> str:
+    return f"frames_{framing.out_width}x{framing.out_height}.npy"
+
+
+def to_tensor(image: np.ndarray) -> torch.Tensor:
+    """``[H, W, 3]`` uint8 -> ``[3, H, W]`` float32 in [-1, 1]."""
+    return torch.from_numpy(np.array(image, np.uint8)).permute(2, 0, 1).float().div(127.5).sub(1.0)
+
+
+def to_image(tensor: torch.Tensor) -> np.ndarray:
+    """``[3, H, W]`` float in [-1, 1] -> ``[H, W, 3]`` uint8 (rounded, clipped)."""
+    x = tensor.detach().float().clamp(-1, 1).add(1).mul(127.5).round().to(torch.uint8)
+    return x.permute(1, 2, 0).cpu().numpy()
+
+
+def load_or_extract_poses(video: Path, run_dir: Path, poses: Path | None) -> PoseSequence:
+    """The target's poses: ``poses`` when given (e.g. ground truth of a synthetic video), else the run's cache,
+    else extracted from the video (then cached as ``RUN_DIR/poses.npz``)."""
+    cache = run_dir / POSES_FILE
+    if poses is not None:
+        seq = PoseSequence.load(poses)
+    elif cache.is_file():
+        return PoseSequence.load(cache)
+    else:
+        from stage2_video.extract import extract_poses  # mediapipe is heavy; import only when extracting
+        seq = extract_poses(video).poses
+    seq.save(cache)
+    return seq
+
+
+def check_poses_match(seq: PoseSequence, video: Path) -> PoseSequence:
+    """Poses must be measured on the video's canvas (the frame count is checked by :func:`cache_frames`)."""
+    info = probe_video(video)
+    if (seq.width, seq.height) != (info.width, info.height):
+        raise DancesynthError(
+            f"The poses are for a {seq.width}x{seq.height} canvas but {video} is {info.width}x{info.height}; "
+            "pass the poses extracted from this video.")
+    return seq
+
+
+def cache_frames(video: Path, framing: Framing, run_dir: Path, num_frames: int) -> np.ndarray:
+    """Framed uint8 frames ``[T, H, W, 3]`` (memory-mapped), decoded once and cached in ``run_dir``."""
+    path = run_dir / frames_file(framing)
+    if path.is_file():
+        frames = np.load(path, mmap_mode="r")
+        if frames.shape[0] == num_frames:
+            return frames
+    count = 0
+    with atomic_path(path) as tmp:
+        out = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.uint8,
+                                        shape=(num_frames, framing.out_height, framing.out_width, 3))
+        for frame in tqdm(read_frames(video), total=num_frames, desc="frames", unit="frame"):
+            if count == num_frames:
+                break
+            out[count] = framing.image(frame)
+            count += 1
+        out.flush()
+        del out
+        if count < num_frames:
+            raise DancesynthError(f"{video} has {count} frames but the poses have {num_frames}; "
+                                  "pass the poses extracted from this video.")
+    return np.load(path, mmap_mode="r")
+
+
+def split_ranges(num_frames: int, val_fraction: float) -> tuple[range, range]:
+    """(train, validation) frame ranges: validation is the last ``val_fraction`` of the video (>= 2 frames)."""
+    n_val = max(2, int(round(num_frames * val_fraction)))
+    if num_frames - n_val < 2:
+        raise DancesynthError(f"The video has only {num_frames} frames; use a target video of at least a few seconds.")
+    return range(0, num_frames - n_val), range(num_frames - n_val, num_frames)
+
+
+@dataclass
+class TargetVideo:
+    """Framed frames and poses of the target video."""
+
+    frames: np.ndarray
+    poses: PoseSequence
+    framing: Framing
+
+
+class FramePairs(Dataset):
+    """Consecutive (previous, current) training pairs inside one frame range.
+
+    Item: ``(label_prev, frame_prev, label_cur, frame_cur)``, each ``[3, H, W]`` float32 in [-1, 1].
+    """
+
+    def __init__(self, target: TargetVideo, frames: range) -> None:
+        self.target = target
+        self.starts = range(frames.start, frames.stop - 1)
+
+    def __len__(self) -> int:
+        return len(self.starts)
+
+    def item(self, t: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """Label map and frame of frame ``t``."""
+        label = label_map(self.target.poses.keypoints[t], self.target.framing)
+        return to_tensor(label), to_tensor(self.target.frames[t])
+
+    def __getitem__(self, i: int) -> tuple[torch.Tensor, ...]:
+        t = self.starts[i]
+        return (*self.item(t), *self.item(t + 1))

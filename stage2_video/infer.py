@@ -1,0 +1,119 @@
+"""Rendering a trained appearance model: pose sequence -> frames of the target person, streamed.
+
+Poses from elsewhere are first normalised onto the target's canvas (:mod:`stage2_video.normalize`, with the
+target statistics stored in the model's JSON), then framed like the training frames, drawn as label maps
+and fed through the generator one frame at a time (each frame conditions the next), so memory stays flat
+for any length.
+"""
+
+from __future__ import annotations
+
+import os
+import warnings
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import torch
+from torch import nn
+from tqdm import tqdm
+
+from stage1_pose.checkpoint import load_checkpoint
+from stage1_pose.device import resolve_device
+from stage1_pose.errors import DancesynthError
+from stage1_pose.media import VideoWriter
+from stage1_pose.skeleton import PoseSequence
+from stage2_video.data import to_image, to_tensor
+from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig
+from stage2_video.normalize import BodyStats, fit_normalization
+from stage2_video.render import Framing, label_map
+from stage2_video.train import KIND
+
+
+def optimize_generator(generator: nn.Module, in_channels: int, width: int, height: int,
+                       device: torch.device) -> nn.Module:
+    """An inference-only copy of ``generator`` for ``[1, in_channels, height, width]`` inputs.
+
+    Traced and frozen by TorchScript with oneDNN's inference passes (weights pre-packed, conv + ReLU fused),
+    in channels-last memory layout. Float32 throughout, so the output equals the plain forward up to
+    rounding (``benchmarks/bench_render.py`` checks the difference).
+    """
+    generator = generator.eval().to(device, memory_format=torch.channels_last)
+    example = torch.zeros(1, in_channels, height, width, device=device).to(memory_format=torch.channels_last)
+    with torch.no_grad(), warnings.catch_warnings():
+        # The tracer flags instance norm's shape checks (fixed for a fixed input size) and TorchScript is
+        # deprecated in favour of torch.compile, which measured slower here on CPU (see bench_render.py).
+        warnings.simplefilter("ignore")
+        return torch.jit.optimize_for_inference(torch.jit.trace(generator, example))
+
+
+@dataclass
+class AppearanceModel:
+    """A trained generator with what rendering needs from its run folder."""
+
+    generator: nn.Module
+    config: Pix2PixHDConfig
+    framing: Framing
+    target_stats: BodyStats | None
+    fps: float
+    device: torch.device
+
+    @torch.inference_mode()
+    def step(self, label: np.ndarray, previous: torch.Tensor | None) -> torch.Tensor:
+        """``[H, W, 3]`` uint8 label map (+ previous output) -> ``[1, 3, H, W]`` frame in [-1, 1]."""
+        x = to_tensor(label)[None].to(self.device)
+        if self.config.temporal:
+            x = torch.cat([x, torch.zeros_like(x) if previous is None else previous], dim=1)
+        return self.generator(x.contiguous(memory_format=torch.channels_last))
+
+
+def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", optimize: bool = True) -> AppearanceModel:
+    """Load ``RUN_DIR/latest`` (kind "stage2"); ``optimize`` compiles the generator for fast rendering."""
+    state_dict, meta = load_checkpoint(Path(run_dir), KIND)
+    dev = resolve_device(device)
+    config = Pix2PixHDConfig.from_dict(meta["config"])
+    model = Pix2PixHD(config)
+    model.load_state_dict(state_dict)
+    generator = model.generator.eval().to(dev)
+    if optimize:
+        in_channels = 6 if config.temporal else 3
+        generator = optimize_generator(generator, in_channels, config.width, config.height, dev)
+    stats = BodyStats.from_dict(meta["target_stats"]) if meta.get("target_stats") else None
+    return AppearanceModel(generator, config, Framing.from_dict(meta["framing"]), stats, float(meta["fps"]), dev)
+
+
+def target_poses(model: AppearanceModel, poses: PoseSequence, normalize: bool = True) -> PoseSequence:
+    """``poses`` moved onto the target's canvas (EDN normalisation) unless ``normalize`` is False."""
+    if not normalize:
+        return poses
+    if model.target_stats is None:
+        raise DancesynthError("This model has no target body statistics (the target video never showed head and "
+                              "ankles together); render with --no-normalize.")
+    return fit_normalization(poses, model.target_stats).apply(poses)
+
+
+def render_frames(model: AppearanceModel, poses: PoseSequence, normalize: bool = True) -> Iterator[np.ndarray]:
+    """Yield one ``[height, width, 3]`` uint8 RGB frame (model resolution) per pose, in order."""
+    seq = target_poses(model, poses, normalize)
+    previous = None
+    for keypoints in seq.keypoints:
+        previous = model.step(label_map(keypoints, model.framing), previous)
+        yield to_image(previous[0])
+
+
+def render_video(poses: PoseSequence, model: AppearanceModel | str | os.PathLike, out_path: str | os.PathLike,
+                 audio: np.ndarray | None = None, audio_sr: int | None = None, normalize: bool = True,
+                 device: str = "auto", progress: bool = True) -> Path:
+    """Render ``poses`` (at their fps) to an mp4 at ``out_path``, with ``audio`` (mono float32 at ``audio_sr``
+    Hz) muxed when given; ``model`` is a loaded model or a run folder. Written atomically; returns the path."""
+    if not isinstance(model, AppearanceModel):
+        model = load_appearance_model(model, device)
+    out_path = Path(out_path)
+    frames = tqdm(render_frames(model, poses, normalize), total=len(poses), desc="rendering", unit="frame",
+                  disable=not progress)
+    with VideoWriter(out_path, poses.fps, model.config.width, model.config.height, audio=audio,
+                     audio_sr=audio_sr) as writer:
+        for frame in frames:
+            writer.write(frame)
+    return out_path

@@ -1,0 +1,368 @@
+"""Training the appearance model (pix2pixHD + Everybody Dance Now temporal smoothing) on one target video.
+
+Run folder layout (``RUN_DIR``):
+  latest.safetensors / latest.json / latest.training.pt   checkpoint (kind "stage2"), resumable exactly
+  poses.npz                                               the target's poses (extracted once, or given)
+  frames_<W>x<H>.npy                                      framed training frames (uint8 memory map)
+  losses.csv, validation.csv, losses.png                  per-step losses, held-out SSIM/PSNR, their plot
+  samples/step_XXXXXXX.png                                held-out frames: real | skeleton | generated
+
+Each step takes consecutive frame pairs (t-1, t): G renders t-1 from its skeleton and a black previous
+frame, then t from its skeleton and that generated frame, as at render time. Torchrun-ready: with
+WORLD_SIZE > 1 each rank takes its DistributedSampler share, gradients are averaged, rank 0 writes.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import cv2
+import numpy as np
+import torch
+import torch.distributed as dist
+import torch.nn.functional as F
+from torch.utils.data import DistributedSampler
+from tqdm import tqdm
+
+from stage1_pose.checkpoint import (
+    capture_rng_state, load_checkpoint, load_meta, load_training_state, restore_rng_state, save_checkpoint)
+from stage1_pose.device import resolve_device
+from stage1_pose.errors import DancesynthError
+from stage1_pose.fileio import atomic_path
+from stage2_video.data import (
+    FramePairs, TargetVideo, cache_frames, check_poses_match, load_or_extract_poses, split_ranges, to_image)
+from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig, feature_matching_loss, lsgan_loss, preset
+from stage2_video.normalize import body_stats
+from stage2_video.quality import psnr, ssim
+from stage2_video.render import Framing, person_framing
+from stage2_video.vgg import VGGLoss, build_vgg_loss
+
+KIND = "stage2"
+METHOD = "pix2pixhd"
+LOSS_COLUMNS = ("step", "epoch", "lr", "d", "g_gan", "g_feat", "g_vgg", "g_l1", "seconds")
+VAL_COLUMNS = ("step", "epoch", "ssim", "psnr")
+
+
+@dataclass
+class TrainOptions:
+    """How long and how often: ``minutes`` (wall-clock budget of this invocation) and/or ``epochs`` (total);
+    ``max_steps`` stops this invocation after that many steps (smoke tests, resume checks)."""
+
+    minutes: float | None = None
+    epochs: int | None = None
+    checkpoint_every: int = 200
+    sample_every: int = 200
+    val_frames: int = 64
+    seed: int = 0
+    max_steps: int | None = None
+
+
+class Trainer:
+    """Holds the model, optimizers, data and position of one run; :meth:`fit` trains until a budget is spent."""
+
+    def __init__(self, config: Pix2PixHDConfig, target: TargetVideo, run_dir: Path, device: torch.device,
+                 vgg: VGGLoss | None, options: TrainOptions, source_video: str) -> None:
+        self.config, self.target, self.run_dir, self.device = config, target, run_dir, device
+        self.options, self.source_video = options, source_video
+        self.vgg = vgg.to(device) if vgg is not None else None
+        self.rank = dist.get_rank() if dist.is_initialized() else 0
+        self.world = dist.get_world_size() if dist.is_initialized() else 1
+        train_range, self.val_range = split_ranges(len(target.poses), config.val_fraction)
+        self.train_set = FramePairs(target, train_range)
+        torch.manual_seed(options.seed)
+        self.model = Pix2PixHD(config).to(device)
+        d_params = list(self.model.discriminator.parameters())
+        if self.model.temporal_discriminator is not None:
+            d_params += list(self.model.temporal_discriminator.parameters())
+        betas = (config.beta1, 0.999)
+        self.opt_g = torch.optim.Adam(self.model.generator.parameters(), lr=config.lr, betas=betas)
+        self.opt_d = torch.optim.Adam(d_params, lr=config.lr, betas=betas)
+        self.epoch, self.position, self.step = 0, 0, 0
+        self.total_epochs = options.epochs or (config.epochs_constant + config.epochs_decay)
+
+    # --- schedule -------------------------------------------------------------------------------------------
+    def lr(self) -> float:
+        """pix2pixHD schedule scaled to ``total_epochs``: constant for the ``epochs_constant`` share, then linear to 0."""
+        const_share = self.config.epochs_constant / max(1, self.config.epochs_constant + self.config.epochs_decay)
+        constant = round(self.total_epochs * const_share)
+        if self.epoch < constant:
+            return self.config.lr
+        return self.config.lr * max(0.0, 1.0 - (self.epoch - constant) / max(1, self.total_epochs - constant))
+
+    def _batches(self) -> list[list[int]]:
+        sampler = DistributedSampler(self.train_set, num_replicas=self.world, rank=self.rank, shuffle=True,
+                                     seed=self.options.seed)
+        sampler.set_epoch(self.epoch)
+        order = list(sampler)
+        bs = self.config.batch_size
+        return [order[i:i + bs] for i in range(0, len(order), bs)]
+
+    # --- one update -----------------------------------------------------------------------------------------
+    def _sync(self, optimizer: torch.optim.Optimizer) -> None:
+        if self.world == 1:
+            return
+        for group in optimizer.param_groups:
+            for p in group["params"]:
+                if p.grad is not None:
+                    dist.all_reduce(p.grad)
+                    p.grad /= self.world
+
+    def train_step(self, batch: list[torch.Tensor]) -> dict[str, float]:
+        """One generator and one discriminator update on a batch of consecutive pairs."""
+        cfg, model = self.config, self.model
+        label_p, real_p, label_c, real_c = (x.to(self.device) for x in batch)
+        fake_p = model.generate(label_p)
+        fake_c = model.generate(label_c, fake_p)
+        labels, reals, fakes = torch.cat([label_p, label_c]), torch.cat([real_p, real_c]), torch.cat([fake_p, fake_c])
+        pairs = [(model.discriminator, torch.cat([labels, reals], 1), torch.cat([labels, fakes], 1))]
+        if model.temporal_discriminator is not None:
+            pairs.append((model.temporal_discriminator, torch.cat([label_p, label_c, real_p, real_c], 1),
+                          torch.cat([label_p, label_c, fake_p, fake_c], 1)))
+        loss_d = fakes.new_zeros(())
+        g_gan = fakes.new_zeros(())
+        g_feat = fakes.new_zeros(())
+        for disc, real_in, fake_in in pairs:
+            pred_real = disc(real_in)
+            pred_fake = disc(fake_in)
+            g_gan = g_gan + lsgan_loss(pred_fake, True)
+            g_feat = g_feat + feature_matching_loss(pred_fake, pred_real, cfg.n_layers_d, cfg.lambda_feat)
+            loss_d = loss_d + 0.5 * (lsgan_loss(pred_real, True) + lsgan_loss(disc(fake_in.detach()), False))
+        g_vgg = self.vgg(fakes, reals) * cfg.lambda_vgg if self.vgg is not None else fakes.new_zeros(())
+        g_l1 = F.l1_loss(fakes, reals) * cfg.lambda_l1
+        loss_g = g_gan + g_feat + g_vgg + g_l1
+        self.opt_g.zero_grad(set_to_none=True)
+        loss_g.backward()
+        self._sync(self.opt_g)
+        self.opt_g.step()
+        # The generator's backward also reached the discriminators; clear that before their own update.
+        self.opt_d.zero_grad(set_to_none=True)
+        loss_d.backward()
+        self._sync(self.opt_d)
+        self.opt_d.step()
+        return {"d": loss_d.item(), "g_gan": g_gan.item(), "g_feat": g_feat.item(), "g_vgg": g_vgg.item(),
+                "g_l1": g_l1.item()}
+
+    # --- loop -----------------------------------------------------------------------------------------------
+    def fit(self) -> dict:
+        """Train until ``epochs`` are done or the ``minutes`` budget is spent; checkpoint at the end."""
+        deadline = time.monotonic() + 60 * self.options.minutes if self.options.minutes else math.inf
+        last_step = self.step + self.options.max_steps if self.options.max_steps else math.inf
+        start = time.monotonic()
+        bar = tqdm(total=self.total_epochs, initial=self.epoch, desc="epochs", unit="epoch", disable=self.rank != 0)
+        out_of_time = False
+        while self.epoch < self.total_epochs and not out_of_time:
+            for g in (*self.opt_g.param_groups, *self.opt_d.param_groups):
+                g["lr"] = self.lr()
+            batches = self._batches()
+            while self.position < len(batches):
+                items = [self.train_set[i] for i in batches[self.position]]
+                batch = [torch.stack(xs) for xs in zip(*items)]
+                losses = self.train_step(batch)
+                self.position += 1
+                self.step += 1
+                self._log(losses, time.monotonic() - start)
+                bar.set_postfix(step=self.step, d=f"{losses['d']:.3f}", l1=f"{losses['g_l1']:.3f}")
+                if self.step % self.options.sample_every == 0:
+                    self.write_samples()
+                if self.step % self.options.checkpoint_every == 0:
+                    self.checkpoint()
+                if time.monotonic() >= deadline or self.step >= last_step:
+                    out_of_time = True
+                    break
+            if not out_of_time:
+                self.epoch, self.position = self.epoch + 1, 0
+                bar.update(1)
+        bar.close()
+        self.write_samples()
+        return self.checkpoint()
+
+    # --- outputs (rank 0 only) ------------------------------------------------------------------------------
+    def _log(self, losses: dict[str, float], seconds: float) -> None:
+        if self.rank != 0:
+            return
+        path = self.run_dir / "losses.csv"
+        new = not path.is_file()
+        with open(path, "a", newline="") as f:
+            w = csv.writer(f)
+            if new:
+                w.writerow(LOSS_COLUMNS)
+            w.writerow([self.step, self.epoch, f"{self.lr():.3g}", *(f"{losses[k]:.5f}" for k in LOSS_COLUMNS[3:8]),
+                        f"{seconds:.1f}"])
+
+    @torch.no_grad()
+    def validate(self) -> dict[str, float]:
+        """Mean SSIM / PSNR over up to ``val_frames`` held-out frames, generated in sequence as at render time."""
+        self.model.eval()
+        frames = list(self.val_range)[:self.options.val_frames]
+        scores_s, scores_p, previous = [], [], None
+        val = FramePairs(self.target, self.val_range)
+        for t in frames:
+            label, _ = val.item(t)
+            previous = self.model.generate(label[None].to(self.device), previous)
+            fake = to_image(previous[0])
+            real = np.asarray(self.target.frames[t])
+            scores_s.append(ssim(fake, real))
+            scores_p.append(psnr(fake, real))
+        self.model.train()
+        return {"ssim": float(np.mean(scores_s)), "psnr": float(np.mean(scores_p))}
+
+    @torch.no_grad()
+    def write_samples(self, count: int = 3) -> None:
+        """PNG grid of held-out frames, one row each: real | skeleton | generated (two-frame warm-up)."""
+        if self.rank != 0:
+            return
+        self.model.eval()
+        val = FramePairs(self.target, self.val_range)
+        rows = []
+        for t in np.linspace(self.val_range.start + 1, self.val_range.stop - 1, count).astype(int):
+            label_p, _ = val.item(t - 1)
+            label, real = val.item(t)
+            previous = self.model.generate(label_p[None].to(self.device))
+            fake = self.model.generate(label[None].to(self.device), previous)
+            rows.append(np.concatenate([to_image(real), to_image(label), to_image(fake[0])], axis=1))
+        self.model.train()
+        folder = self.run_dir / "samples"
+        folder.mkdir(exist_ok=True)
+        with atomic_path(folder / f"step_{self.step:07d}.png") as tmp:
+            cv2.imwrite(str(tmp), cv2.cvtColor(np.concatenate(rows), cv2.COLOR_RGB2BGR))
+
+    def meta(self) -> dict:
+        poses = self.target.poses
+        try:
+            stats = body_stats(poses).to_dict()
+        except DancesynthError:
+            stats = None  # the target never shows head and ankles together: render with --no-normalize only
+        return {"kind": KIND, "method": METHOD, "config": self.config.to_dict(), "epoch": self.epoch,
+                "position": self.position, "step": self.step, "total_epochs": self.total_epochs,
+                "framing": self.target.framing.to_dict(), "target_stats": stats, "fps": poses.fps,
+                "canvas": [poses.width, poses.height], "video": self.source_video, "vgg": self.vgg is not None,
+                "seed": self.options.seed}
+
+    def checkpoint(self) -> dict:
+        """Save weights + meta + optimizer/RNG state; append held-out SSIM/PSNR to validation.csv. Rank 0 only."""
+        meta = self.meta()
+        if self.rank != 0:
+            return meta
+        meta["validation"] = self.validate()
+        state = {"opt_g": self.opt_g.state_dict(), "opt_d": self.opt_d.state_dict(),
+                 "rng": capture_rng_state()}
+        save_checkpoint(self.run_dir, self.model, meta, training_state=state)
+        path = self.run_dir / "validation.csv"
+        new = not path.is_file()
+        with open(path, "a", newline="") as f:
+            w = csv.writer(f)
+            if new:
+                w.writerow(VAL_COLUMNS)
+            w.writerow([self.step, self.epoch, f"{meta['validation']['ssim']:.4f}", f"{meta['validation']['psnr']:.2f}"])
+        plot_losses(self.run_dir)
+        return meta
+
+    def restore(self) -> None:
+        """Continue from the run folder's latest checkpoint exactly where it stopped."""
+        state_dict, meta = load_checkpoint(self.run_dir, KIND)
+        self.model.load_state_dict(state_dict)
+        state = load_training_state(self.run_dir)
+        self.opt_g.load_state_dict(state["opt_g"])
+        self.opt_d.load_state_dict(state["opt_d"])
+        restore_rng_state(state["rng"])
+        self.epoch, self.position, self.step = meta["epoch"], meta["position"], meta["step"]
+        self.total_epochs = self.options.epochs or meta["total_epochs"]
+        if self.rank == 0:
+            _truncate_csv(self.run_dir / "losses.csv", self.step)
+            _truncate_csv(self.run_dir / "validation.csv", self.step)
+
+
+def _truncate_csv(path: Path, step: int) -> None:
+    """Drop rows logged after the checkpoint being resumed (they will be logged again)."""
+    if not path.is_file():
+        return
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    kept = rows[:1] + [r for r in rows[1:] if int(r[0]) <= step]
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
+        csv.writer(f).writerows(kept)
+
+
+def plot_losses(run_dir: Path) -> None:
+    """``losses.png``: per-step losses (left) and held-out SSIM (right)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    def read(name: str) -> dict[str, np.ndarray]:
+        path = run_dir / name
+        if not path.is_file():
+            return {}
+        data = np.genfromtxt(path, delimiter=",", names=True, ndmin=1)
+        return {k: data[k] for k in data.dtype.names}
+
+    losses, val = read("losses.csv"), read("validation.csv")
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
+    for key in LOSS_COLUMNS[3:8]:
+        if key in losses and np.any(losses[key]):
+            a.plot(losses["step"], losses[key], label=key, linewidth=0.8)
+    a.set_xlabel("step")
+    a.set_yscale("log")
+    a.legend()
+    if val:
+        b.plot(val["step"], val["ssim"], marker="o")
+    b.set_xlabel("step")
+    b.set_ylabel("held-out SSIM")
+    fig.tight_layout()
+    with atomic_path(run_dir / "losses.png") as tmp:
+        fig.savefig(tmp, dpi=90)
+    plt.close(fig)
+
+
+def _init_distributed(device: torch.device) -> None:
+    if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not dist.is_initialized():
+        dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
+
+
+def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_name: str = "small",
+                options: TrainOptions | None = None, resume: bool = False, poses: str | os.PathLike | None = None,
+                vgg_weights: str | os.PathLike | None = None, device: str = "auto",
+                overrides: dict | None = None) -> dict:
+    """Train (or with ``resume`` continue) an appearance model of the person in ``video``; returns the last meta.
+
+    ``poses``: a pose file for ``video`` (same canvas) used instead of extracting poses.
+    ``overrides``: config fields replacing the preset's (e.g. ``{"width": 256, "height": 256}``).
+    """
+    video, run_dir = Path(video), Path(run_dir)
+    options = options or TrainOptions()
+    if not video.is_file():
+        raise DancesynthError(f"Target video {video} does not exist; check the path.")
+    if options.minutes is None and options.epochs is None:
+        raise DancesynthError("Give a time budget with --minutes or a length with --epochs.")
+    dev = resolve_device(device)
+    _init_distributed(dev)
+    if resume:
+        meta = load_meta(run_dir, KIND)
+        config = Pix2PixHDConfig.from_dict(meta["config"])
+        framing = Framing.from_dict(meta["framing"])
+    else:
+        if (run_dir / "latest.json").is_file():
+            raise DancesynthError(f"{run_dir} already holds a trained model; pass --resume to continue it "
+                                  "or choose a new --out folder.")
+        config = preset(preset_name, **(overrides or {}))
+        framing = None
+    run_dir.mkdir(parents=True, exist_ok=True)
+    # Rank 0 extracts and caches poses and frames; the other ranks then read the caches.
+    rank0 = not dist.is_initialized() or dist.get_rank() == 0
+    if not rank0:
+        dist.barrier()
+    seq = check_poses_match(load_or_extract_poses(video, run_dir, Path(poses) if poses else None), video)
+    framing = framing or person_framing(seq, config.width, config.height)
+    frames = cache_frames(video, framing, run_dir, len(seq))
+    if rank0 and dist.is_initialized():
+        dist.barrier()
+    trainer = Trainer(config, TargetVideo(frames, seq, framing), run_dir, dev, build_vgg_loss(vgg_weights),
+                      options, str(video))
+    if resume:
+        trainer.restore()
+    return trainer.fit()

@@ -1,0 +1,48 @@
+import json
+
+import numpy as np
+import pytest
+import torch
+
+from stage1_pose.errors import DancesynthError
+from stage1_pose.media import probe_video
+from stage1_pose.skeleton import PoseSequence
+from stage2_video.infer import load_appearance_model, render_frames, render_video
+
+from conftest import swaying_poses
+
+
+def test_render_streams_a_video_with_right_count_and_size(tiny_run, tmp_path):
+    model = load_appearance_model(tiny_run, "cpu")
+    # poses from elsewhere: another canvas, smaller person, other fps -> normalised onto the target
+    src = swaying_poses(frames=9, width=200, height=120)
+    src = src.replace(src.keypoints * np.array([0.8, 0.8, 1], np.float32), fps=10.0)
+    out = render_video(src, model, tmp_path / "out.mp4", progress=False)
+    info = probe_video(out)
+    assert (info.width, info.height) == (32, 32)
+    assert info.num_frames == 9 and info.fps == pytest.approx(10.0)
+    assert not list(tmp_path.glob("*.part*"))
+
+
+def test_optimized_generator_matches_plain_forward(tiny_run):
+    fast = load_appearance_model(tiny_run, "cpu")
+    plain = load_appearance_model(tiny_run, "cpu", optimize=False)
+    assert not isinstance(plain.generator, torch.jit.ScriptModule)
+    poses = PoseSequence.load(tiny_run / "poses.npz").slice_frames(0, 5)
+    for a, b in zip(render_frames(fast, poses, normalize=False), render_frames(plain, poses, normalize=False)):
+        assert a.shape == (32, 32, 3) and a.dtype == np.uint8
+        assert np.abs(a.astype(int) - b.astype(int)).max() <= 1
+
+
+def test_wrong_kind_checkpoint_is_a_user_error(tiny_run, tmp_path):
+    other = tmp_path / "other"
+    other.mkdir()
+    for f in tiny_run.glob("latest.*"):
+        (other / f.name).write_bytes(f.read_bytes())
+    meta = json.loads((other / "latest.json").read_text())
+    meta["kind"] = "stage1"
+    (other / "latest.json").write_text(json.dumps(meta))
+    with pytest.raises(DancesynthError):
+        load_appearance_model(other, "cpu")
+    with pytest.raises(DancesynthError):
+        load_appearance_model(tmp_path / "missing", "cpu")

@@ -1,0 +1,57 @@
+import csv
+
+import numpy as np
+import pytest
+from safetensors.numpy import load_file
+
+from stage1_pose.errors import DancesynthError
+from stage2_video.train import TrainOptions, train_video
+
+from conftest import TINY
+
+
+def _rows(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_tiny_model_learns_to_reproduce_frames(tiny_target, tmp_path):
+    video, poses = tiny_target
+    meta = train_video(video, tmp_path, "small", TrainOptions(epochs=6, val_frames=4, sample_every=1000,
+                                                              checkpoint_every=1000),
+                       poses=poses, device="cpu", overrides={**TINY, "lr": 2e-3})
+    rows = _rows(tmp_path / "losses.csv")
+    l1 = np.array([float(r["g_l1"]) for r in rows])
+    assert len(rows) == meta["step"] == 6 * 5
+    assert l1[-5:].mean() < 0.6 * l1[:5].mean()
+    assert meta["kind"] == "stage2" and meta["target_stats"] is not None
+    for name in ("latest.safetensors", "latest.json", "poses.npz", "losses.png", "validation.csv"):
+        assert (tmp_path / name).is_file(), name
+    assert list((tmp_path / "samples").glob("step_*.png"))
+
+
+def test_resume_is_exact(tiny_target, tmp_path):
+    video, poses = tiny_target
+    straight, split = tmp_path / "straight", tmp_path / "split"
+    opts = dict(epochs=2, val_frames=2, sample_every=1000, checkpoint_every=1000)
+    train_video(video, straight, "small", TrainOptions(**opts), poses=poses, device="cpu", overrides=TINY)
+    train_video(video, split, "small", TrainOptions(**opts, max_steps=3), poses=poses, device="cpu", overrides=TINY)
+    with pytest.raises(DancesynthError, match="--resume"):
+        train_video(video, split, "small", TrainOptions(**opts), poses=poses, device="cpu", overrides=TINY)
+    meta = train_video(video, split, "small", TrainOptions(**opts), resume=True, poses=poses, device="cpu")
+    assert meta["step"] == 10
+    a, b = load_file(straight / "latest.safetensors"), load_file(split / "latest.safetensors")
+    assert a.keys() == b.keys()
+    for k in a:
+        np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+    assert [r["step"] for r in _rows(split / "losses.csv")] == [str(s) for s in range(1, 11)]
+
+
+def test_bad_inputs_are_user_errors(tiny_target, tmp_path):
+    video, poses = tiny_target
+    with pytest.raises(DancesynthError, match="does not exist"):
+        train_video(tmp_path / "nope.mp4", tmp_path / "r", options=TrainOptions(epochs=1))
+    with pytest.raises(DancesynthError, match="--minutes"):
+        train_video(video, tmp_path / "r", options=TrainOptions())
+    with pytest.raises(DancesynthError):
+        train_video(video, tmp_path / "r2", options=TrainOptions(epochs=1), resume=True)
