@@ -127,7 +127,7 @@ class PoseSequence:
                 if str(z["layout"]) != "BODY_25":
                     raise KeyError("layout")
                 return cls(z["keypoints"], float(z["fps"]), int(z["width"]), int(z["height"]))
-        except (OSError, KeyError, ValueError) as e:
+        except (OSError, KeyError, ValueError, TypeError) as e:  # TypeError: a plain .npy array is no archive
             raise DancesynthError(
                 f"{path} is not a dancesynth pose file (.npz with BODY_25 keypoints, fps, width, height); "
                 "create one with `dancesynth extract-poses` or `dancesynth generate`.") from e
