@@ -85,6 +85,26 @@ def test_failed_write_leaves_no_file(tmp_path):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_rotated_phone_video_comes_out_upright(tmp_path):
+    path = tmp_path / "portrait.mp4"
+    with av.open(str(path), mode="w") as container:
+        stream = container.add_stream("libx264", rate=15)
+        stream.width, stream.height, stream.pix_fmt = 64, 32, "yuv420p"
+        stream.set_display_rotation(-90)  # what a phone held upright writes: show the frame turned clockwise
+        for i in range(3):
+            stored = np.zeros((32, 64, 3), np.uint8)
+            stored[:, :8] = 255  # a white stripe on the stored frame's left edge ...
+            frame = av.VideoFrame.from_ndarray(stored, format="rgb24")
+            frame.pts = i
+            container.mux(stream.encode(frame))
+        container.mux(stream.encode(None))
+    info = media.probe_video(path)
+    assert (info.width, info.height, info.rotation) == (32, 64, -90)
+    upright = next(media.read_frames(path))
+    assert upright.shape == (64, 32, 3)
+    assert upright[:6].mean() > 200 and upright[12:].mean() < 30  # ... is on top once turned clockwise
+
+
 def test_upright_applies_rotation():
     image = np.arange(6, dtype=np.uint8).reshape(2, 3, 1)
     assert media._upright(image, 0) is image
