@@ -67,6 +67,9 @@ def test_pose_box_and_torso():
     np.testing.assert_allclose(neck, (100, 50))
     assert size == 40
     assert torso(np.zeros((25, 3), np.float32)) is None
+    # Crops are clipped to the frame, never padded.
+    assert Box(10, 10, 40).bounds(100, 50) == (0, 0, 30, 30)
+    assert Box(90, 40, 40).scaled(2).bounds(100, 50) == (50, 0, 100, 50)
 
 
 def test_find_people_finds_everyone_and_choose_target_prefers_large_and_central():
@@ -107,4 +110,3 @@ def test_crop_follows_the_target_so_a_bigger_person_outside_it_is_never_taken():
     scenes = [[target[0]]] + [[bigger, target[t]] for t in range(1, 8)]
     tracker = PersonTracker(ScriptedEstimator(scenes), W, H)
     assert all(p is target[t] for t, p in enumerate(run(tracker, 8)))
-    assert Box(0, 0, 10).scaled(2).side == 20

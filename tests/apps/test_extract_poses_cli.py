@@ -1,0 +1,40 @@
+"""`dancesynth extract-poses` end to end on a short video made from a real photo."""
+
+import cv2
+import numpy as np
+import skimage.data
+
+from apps.cli import main
+from stage1_pose.media import probe_video, write_video
+from stage1_pose.skeleton import JOINT_INDEX, PoseSequence
+
+NAME = "extract-poses"
+
+
+def test_extract_poses_writes_poses_and_preview(tmp_path, capsys):
+    person = cv2.resize(skimage.data.astronaut(), (160, 160), interpolation=cv2.INTER_AREA)
+    frames = []
+    for t in range(5):
+        frame = np.full((200, 240, 3), 60, np.uint8)
+        frame[20:180, 10 + 10 * t:170 + 10 * t] = person
+        frames.append(frame)
+    video, out, preview = tmp_path / "clip.mp4", tmp_path / "poses.npz", tmp_path / "overlay.mp4"
+    write_video(video, frames, 12)
+    assert main([NAME, str(video), "--out", str(out), "--preview", str(preview), "--quiet"]) == 0
+    poses = PoseSequence.load(out)
+    assert (len(poses), poses.fps, poses.width, poses.height) == (5, 12, 240, 200)
+    nose_x = poses.keypoints[:, JOINT_INDEX["Nose"], 0]
+    assert np.all(np.diff(nose_x) > 5)
+    info = probe_video(preview)
+    assert (info.num_frames, info.width, info.height) == (5, 240, 200)
+    assert "person found in 100% of frames" in capsys.readouterr().out
+
+
+def test_extract_poses_reports_user_errors_without_traceback(tmp_path, capsys):
+    assert main([NAME, str(tmp_path / "missing.mp4"), "--out", str(tmp_path / "p.npz")]) == 1
+    assert "missing.mp4 does not exist" in capsys.readouterr().err
+    assert main([NAME, str(tmp_path / "missing.mp4"), "--out", str(tmp_path / "p.json")]) == 1
+    assert "must end in .npz" in capsys.readouterr().err
+    assert main([NAME, "x.mp4", "--out", str(tmp_path / "p.npz"), "--smoothing", "savgol", "--window", "-1"]) == 1
+    assert "must be positive" in capsys.readouterr().err
+
