@@ -31,17 +31,18 @@ examples:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("video", type=Path, help="input video (any resolution; phone rotation is honoured)")
-    parser.add_argument("--out", type=Path, required=True, help="output pose file (.npz)")
-    parser.add_argument("--preview", type=Path, help="also write this mp4: the skeleton drawn over the video")
+    parser.add_argument("--out", type=Path, required=True, metavar="POSES.npz", help="output pose file (.npz)")
+    parser.add_argument("--preview", type=Path, metavar="OVERLAY.mp4",
+                        help="also write this mp4: the skeleton drawn over the video")
     parser.add_argument("--smoothing", choices=METHODS, default="savgol",
                         help="temporal filter: savgol (no lag, default), one-euro (causal) or none")
     parser.add_argument("--window", type=float, default=SmoothingConfig.window_s, metavar="SECONDS",
                         help="savgol window length in seconds (default %(default)s)")
     parser.add_argument("--min-cutoff", type=float, default=SmoothingConfig.min_cutoff_hz, metavar="HZ",
                         help="one-euro cut-off at rest in Hz, lower = smoother (default %(default)s)")
-    parser.add_argument("--beta", type=float, default=SmoothingConfig.beta,
+    parser.add_argument("--beta", type=float, default=SmoothingConfig.beta, metavar="B",
                         help="one-euro speed coefficient, higher = less lag on fast moves (default %(default)s)")
-    parser.add_argument("--min-visibility", type=float, default=ExtractConfig.min_visibility,
+    parser.add_argument("--min-visibility", type=float, default=ExtractConfig.min_visibility, metavar="V",
                         help="BlazePose visibility below which a joint counts as absent (default %(default)s)")
     parser.add_argument("--max-missing", type=float, default=ExtractConfig.max_missing_fraction,
                         metavar="FRACTION",
