@@ -8,6 +8,8 @@ metrics take beat positions: music beats in seconds, kinematic beats as pose-fra
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import scipy.linalg
 
@@ -32,7 +34,10 @@ def _trace_sqrt_product(cov_a: np.ndarray, cov_b: np.ndarray) -> float:
     singular, common with fewer samples than dimensions) the symmetric form ``tr(sqrt(A^1/2 B A^1/2))``,
     which has the same trace and only needs eigen-decompositions of symmetric PSD matrices, is used instead.
     """
-    root = scipy.linalg.sqrtm(cov_a @ cov_b)
+    with warnings.catch_warnings():
+        # A singular product is expected here and handled by the fallback below.
+        warnings.simplefilter("ignore", scipy.linalg.LinAlgWarning)
+        root = scipy.linalg.sqrtm(cov_a @ cov_b)
     if np.all(np.isfinite(root)) and np.abs(np.imag(root)).max(initial=0.0) <= 1e-3 * max(1.0, np.abs(root).max()):
         return float(np.real(np.trace(root)))
     w, v = np.linalg.eigh((cov_a + cov_a.T) / 2)

@@ -172,3 +172,21 @@ def load_style_classifier(run_dir: str | os.PathLike, device: torch.device) -> L
 def classifier_accuracy(clf: LoadedStyleClassifier, dances: list[PoseSequence], labels: list[int]) -> float:
     """Share of dances whose predicted style equals the label (e.g. on the test split)."""
     return float(np.mean([clf.embed(d)[0] == y for d, y in zip(dances, labels)]))
+
+
+def train_on_dataset(data_dir: str | os.PathLike, config: StyleClassifierConfig, device: torch.device,
+                     seed: int = 0, progress: bool = True) -> tuple[LoadedStyleClassifier, float]:
+    """Train on the dance of every train-split clip of a dataset folder, labelled with the clip's style.
+
+    Returns the classifier and its accuracy on the real dances of the test split (NaN when it has none),
+    which is the ceiling the ACC of generated dances can be read against.
+    """
+    from stage1_pose.data.dataset import DanceDataset
+
+    ds = DanceDataset(data_dir)
+    train, test = ds.clips("train"), ds.clips("test")
+    clf = train_style_classifier([ds.load_poses(c) for c in train], [ds.style_index(c) for c in train],
+                                 list(ds.styles), config, device, seed, progress)
+    if not test:
+        return clf, float("nan")
+    return clf, classifier_accuracy(clf, [ds.load_poses(c) for c in test], [ds.style_index(c) for c in test])

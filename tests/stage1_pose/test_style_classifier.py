@@ -9,6 +9,15 @@ from stage1_pose.skeleton import PoseSequence
 from stage1_pose.style_classifier import (PRESETS, classifier_accuracy, load_style_classifier,
                                           save_style_classifier, train_style_classifier)
 
+
+@pytest.fixture(autouse=True, scope="module")
+def one_torch_thread():
+    # Tiny LSTMs: thread synchronisation costs more than it saves (60x slower with 2 threads on a loaded 2-core box).
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
 STANDING = np.array([[640, 200], [640, 250], [600, 250], [580, 320], [570, 380], [680, 250], [700, 320],
                      [710, 380], [640, 400], [615, 400], [610, 500], [605, 600], [665, 400], [670, 500],
                      [675, 600], [630, 190], [650, 190], [620, 195], [660, 195], [690, 610], [700, 610],

@@ -1,0 +1,392 @@
+"""The stage-1 evaluation driver: every model and baseline on the held-out songs, every metric, one report.
+
+Rows ("contenders"):
+  * ``real dances`` - the test split's own dances (an upper reference; multimodality undefined);
+  * ``random real dance`` - a random training dance paired with the test song (real motion, mismatched music:
+    shows what the beat and cross-modal metrics give when the dance ignores the music);
+  * ``mean pose (frozen)`` - the training set's mean pose held still (shows the metrics catching a frozen dance);
+  * one row per model run folder (:func:`stage1_pose.generate.generate_dance`).
+Each row is evaluated ``trials`` times with seeds 0..trials-1; table values are mean +- std over trials.
+FID compares windows (the style classifier's ``window_frames``, 4 s) of the row's dances with the windows of
+the training split's real dances.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from stage1_pose import metrics
+from stage1_pose.audio import num_pose_frames
+from stage1_pose.data.dataset import DanceDataset
+from stage1_pose.errors import DancesynthError
+from stage1_pose.fileio import atomic_path
+from stage1_pose.kinematic_beats import kinematic_beats, velocity_minimum_beats
+from stage1_pose.skeleton import PoseSequence
+from stage1_pose.style_classifier import LoadedStyleClassifier
+
+MUSIC_FEATURE_KIND = "dancing2music"
+REAL, RANDOM_REAL, FROZEN = "real dances", "random real dance", "mean pose (frozen)"
+
+
+@dataclass
+class Song:
+    """A held-out song cut to the evaluated length, with its real dance and beats.
+
+    ``samples`` mono ``[N]`` at ``sr`` Hz; ``beats`` in seconds (only those inside the cut); ``real`` the
+    dance performed to it (``num_pose_frames`` frames); ``music`` a ``[E]`` summary music embedding.
+    """
+
+    id: str
+    style: int
+    samples: np.ndarray
+    sr: int
+    beats: np.ndarray
+    real: PoseSequence
+    music: np.ndarray
+
+
+@dataclass
+class Reference:
+    """The training split as metrics need it: dances, their classifier embeddings and music embeddings."""
+
+    dances: list[PoseSequence]
+    dance_features: np.ndarray
+    window_features: np.ndarray
+    music: np.ndarray
+
+
+@dataclass
+class Contender:
+    """A table row: ``make(song_index, seed) -> PoseSequence`` of the song's length."""
+
+    name: str
+    make: Callable[[int, int], PoseSequence]
+    stochastic: bool = True
+
+
+@dataclass
+class DanceScores:
+    """Per-dance quantities the row metrics are aggregated from."""
+
+    predicted: int
+    feature: np.ndarray
+    windows: np.ndarray
+    d2m_beats: np.ndarray
+    vmin_beats: np.ndarray
+
+
+@dataclass
+class RowResult:
+    """Metric name -> values over trials, multimodality over seeds, and the long-term FID curve."""
+
+    name: str
+    per_trial: dict[str, list[float]] = field(default_factory=dict)
+    multimodality: float = float("nan")
+    fid_curve: list[float] = field(default_factory=list)
+
+    def summary(self) -> dict[str, dict[str, float]]:
+        """Metric -> {"mean", "std"} over trials (NaN trials ignored)."""
+        out = {}
+        for k, v in self.per_trial.items():
+            a = np.asarray(v, np.float64)
+            ok = a[np.isfinite(a)]
+            out[k] = {"mean": float(ok.mean()) if ok.size else float("nan"),
+                      "std": float(ok.std()) if ok.size else float("nan"), "trials": int(ok.size)}
+        return out
+
+
+# Table columns: key, header, scale (x100 for percentages), decimals.
+COLUMNS: tuple[tuple[str, str, float, int], ...] = (
+    ("fid", "FID ↓", 1.0, 2),
+    ("acc", "ACC %", 100.0, 1),
+    ("coverage_d2m", "Beat cov. % (D2M)", 100.0, 1),
+    ("hit_rate_d2m", "Beat hit % (D2M)", 100.0, 1),
+    ("coverage_vmin", "Beat cov. % (vel-min)", 100.0, 1),
+    ("hit_rate_vmin", "Beat hit % (vel-min)", 100.0, 1),
+    ("beat_align", "BAS", 1.0, 3),
+    ("diversity", "Diversity", 1.0, 2),
+    ("cross_modal", "Cross-modal dist. ↓", 1.0, 2),
+)
+
+
+def music_embedding(features: np.ndarray) -> np.ndarray:
+    """``[T, D]`` per-frame music features -> ``[2 D]`` (mean and std over time): a song summary."""
+    f = np.asarray(features, np.float64)
+    return np.concatenate([f.mean(axis=0), f.std(axis=0)])
+
+
+def fit_length(seq: PoseSequence, frames: int) -> PoseSequence:
+    """Cut ``seq`` to ``frames`` frames, looping it when it is shorter."""
+    return seq.replace(seq.keypoints[np.arange(frames) % len(seq)].copy())
+
+
+def load_songs(ds: DanceDataset, seconds: float, split: str = "test") -> list[Song]:
+    """The songs of ``split`` cut to at most ``seconds`` seconds, with their dances, beats and music embeddings."""
+    songs = []
+    for clip in ds.clips(split):
+        samples = ds.load_audio(clip)[: int(round(seconds * ds.sample_rate))]
+        real = ds.load_poses(clip)
+        frames = min(num_pose_frames(len(samples), ds.sample_rate, real.fps), len(real))
+        beats = ds.load_beats(clip)["beats"]
+        music = np.asarray(ds.load_features(clip, MUSIC_FEATURE_KIND)[:frames])
+        songs.append(Song(clip.id, ds.style_index(clip), samples, ds.sample_rate, beats[beats < frames / real.fps],
+                          real.slice_frames(0, frames), music_embedding(music)))
+    if not songs:
+        raise DancesynthError(f"The dataset {ds.root} has no {split} clips to evaluate on; "
+                              "re-create it with more `--clips`.")
+    return songs
+
+
+def load_reference(ds: DanceDataset, clf: LoadedStyleClassifier) -> Reference:
+    """Embed every training dance (whole dance and consecutive windows) and summarise its music."""
+    dances, feats, windows, music = [], [], [], []
+    for clip in tqdm(ds.clips("train"), desc="reference dances", unit="clip"):
+        dance = ds.load_poses(clip)
+        _, f, w = clf.embed(dance)
+        dances.append(dance)
+        feats.append(f)
+        windows.append(w)
+        music.append(music_embedding(ds.load_features(clip, MUSIC_FEATURE_KIND)))
+    if len(dances) < 2:
+        raise DancesynthError(f"The dataset {ds.root} needs at least two training clips for the reference "
+                              "statistics; re-create it with more `--clips`.")
+    return Reference(dances, np.stack(feats), np.concatenate(windows), np.stack(music))
+
+
+def baseline_contenders(songs: list[Song], ref: Reference) -> list[Contender]:
+    """The real, random-real (mismatched music) and frozen mean-pose rows."""
+    frames = [len(s.real) for s in songs]
+    mean_pose = np.mean([d.keypoints.mean(axis=0) for d in ref.dances], axis=0)
+    template = ref.dances[0]
+
+    def random_real(i: int, seed: int) -> PoseSequence:
+        pick = np.random.default_rng([seed, i]).integers(len(ref.dances))
+        return fit_length(ref.dances[pick], frames[i])
+
+    def frozen(i: int, seed: int) -> PoseSequence:
+        return template.replace(np.repeat(mean_pose[None], frames[i], axis=0))
+
+    return [Contender(REAL, lambda i, seed: songs[i].real, stochastic=False),
+            Contender(RANDOM_REAL, random_real), Contender(FROZEN, frozen, stochastic=False)]
+
+
+def model_contender(run_dir: str | os.PathLike, songs: list[Song], device: str) -> Contender:
+    """A row generating with the stage-1 model saved in ``run_dir``."""
+    from stage1_pose.generate import generate_dance, load_pose_model
+
+    model = load_pose_model(run_dir, device)
+
+    def make(i: int, seed: int) -> PoseSequence:
+        return fit_length(generate_dance(model, songs[i].samples, songs[i].sr, seed=seed), len(songs[i].real))
+
+    return Contender(Path(run_dir).name, make)
+
+
+def score_dance(dance: PoseSequence, clf: LoadedStyleClassifier) -> DanceScores:
+    """Classifier embedding and both kinematic beat sets (frame indices) of one dance."""
+    pred, feat, windows = clf.embed(dance)
+    return DanceScores(pred, feat, windows, np.asarray(kinematic_beats(dance.xy, dance.fps)),
+                       np.asarray(velocity_minimum_beats(dance.xy, dance.fps)))
+
+
+def trial_metrics(scores: list[DanceScores], songs: list[Song], ref: Reference, fps: float,
+                  tolerance_frames: float) -> dict[str, float]:
+    """Every per-trial metric of one row (one dance per song)."""
+    music_frames = [s.beats * fps for s in songs]
+    out = {
+        "fid": metrics.frechet_distance(np.concatenate([s.windows for s in scores]), ref.window_features),
+        "acc": metrics.style_accuracy(np.array([s.predicted for s in scores]), np.array([s.style for s in songs])),
+        "beat_align": float(np.nanmean([metrics.beat_align_score(s.beats, d.vmin_beats / fps)
+                                        for d, s in zip(scores, songs)])),
+        "diversity": metrics.diversity(np.stack([s.feature for s in scores])),
+        "cross_modal": metrics.cross_modal_distance(np.stack([s.feature for s in scores]),
+                                                    np.stack([s.music for s in songs]), ref.music,
+                                                    ref.dance_features),
+    }
+    for tag in ("d2m", "vmin"):
+        kin = [getattr(d, f"{tag}_beats") for d in scores]
+        out[f"coverage_{tag}"] = float(np.nanmean([metrics.beat_coverage(k, m) for k, m in zip(kin, music_frames)]))
+        hits = [metrics.beat_hit_rate(k, m, tolerance_frames) for k, m in zip(kin, music_frames)]
+        out[f"hit_rate_{tag}"] = float(np.nanmean(hits)) if np.isfinite(hits).any() else float("nan")
+    return out
+
+
+def evaluate_contender(contender: Contender, songs: list[Song], ref: Reference, clf: LoadedStyleClassifier,
+                       trials: int, tolerance_frames: float,
+                       on_dance: Callable[[str, int, int, PoseSequence], None] | None = None) -> RowResult:
+    """All metrics of one row over ``trials`` seeds. ``on_dance(row, song_index, seed, dance)`` sees every dance."""
+    result = RowResult(contender.name)
+    n_trials = trials if contender.stochastic else 1
+    all_scores: list[list[DanceScores]] = []
+    bar = tqdm(total=n_trials * len(songs), desc=contender.name, unit="dance")
+    for seed in range(n_trials):
+        scores = []
+        for i in range(len(songs)):
+            dance = contender.make(i, seed)
+            if on_dance is not None:
+                on_dance(contender.name, i, seed, dance)
+            scores.append(score_dance(dance, clf))
+            bar.update()
+        all_scores.append(scores)
+        for k, v in trial_metrics(scores, songs, ref, songs[0].real.fps, tolerance_frames).items():
+            result.per_trial.setdefault(k, []).append(v)
+    bar.close()
+    if contender.stochastic and n_trials >= 2:
+        result.multimodality = metrics.multimodality(
+            np.stack([[all_scores[t][i].feature for t in range(n_trials)] for i in range(len(songs))]))
+    elif contender.name != REAL:
+        result.multimodality = 0.0
+    n_windows = min(s.windows.shape[0] for trial in all_scores for s in trial)
+    curve_input = np.stack([s.windows[:n_windows] for trial in all_scores for s in trial])
+    result.fid_curve = metrics.fid_over_time(curve_input, ref.window_features).tolist()
+    return result
+
+
+def _cell(stats: dict[str, float], scale: float, decimals: int) -> str:
+    if not np.isfinite(stats["mean"]):
+        return "–"
+    mean = f"{stats['mean'] * scale:.{decimals}f}"
+    return mean if stats["trials"] < 2 else f"{mean} ± {stats['std'] * scale:.{decimals}f}"
+
+
+def markdown_table(rows: list[RowResult]) -> str:
+    """The report table: one row per contender, mean ± std over trials per column."""
+    header = ["Method"] + [c[1] for c in COLUMNS] + ["Multimodality"]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    for r in rows:
+        s = r.summary()
+        cells = [_cell(s[key], scale, dec) for key, _, scale, dec in COLUMNS]
+        mm = f"{r.multimodality:.2f}" if np.isfinite(r.multimodality) else "–"
+        lines.append("| " + " | ".join([r.name] + cells + [mm]) + " |")
+    return "\n".join(lines)
+
+
+def write_report(out_dir: Path, rows: list[RowResult], info: dict) -> None:
+    """``report.md`` (settings + table + legend) and ``report.json`` (every number) in ``out_dir``."""
+    data = {"settings": info, "rows": [{"name": r.name, "summary": r.summary(), "per_trial": r.per_trial,
+                                        "multimodality": r.multimodality, "fid_over_time": r.fid_curve}
+                                       for r in rows]}
+    with atomic_path(out_dir / "report.json") as tmp:
+        tmp.write_text(json.dumps(data, indent=1, allow_nan=True))
+    settings = "\n".join(f"- {k}: {v}" for k, v in info.items())
+    text = (f"# Stage-1 evaluation\n\n{settings}\n\n{markdown_table(rows)}\n\n"
+            "Mean ± std over trials (seeds; deterministic rows are evaluated once). ↓ = lower is better; for the other columns the real dances are the "
+            "target, not the maximum. D2M = Dancing2Music kinematic-offset beats, vel-min = local minima of "
+            "smoothed joint speed (Bailando); a kinematic beat hits when a music beat is within "
+            f"±{info['tolerance_frames']} frames. BAS σ = {metrics.DEFAULT_BAS_SIGMA_SECONDS} s. "
+            "Multimodality is over seeds for the same song (– where undefined).\n\n"
+            "![FID over time](fid_over_time.png)\n\n![Beat alignment](beat_alignment.png)\n")
+    with atomic_path(out_dir / "report.md") as tmp:
+        tmp.write_text(text)
+
+
+@dataclass(frozen=True)
+class EvaluationOptions:
+    """What :func:`run_evaluation` does. ``seconds`` and ``video_seconds`` are seconds of each song."""
+
+    trials: int = 3
+    seconds: float = 60.0
+    device: str = "auto"
+    classifier: str | None = None
+    classifier_preset: str = "paper"
+    tolerance_frames: float = metrics.DEFAULT_TOLERANCE_FRAMES
+    video_seconds: float = 10.0
+    plot_seconds: float = 12.0
+
+
+def obtain_classifier(ds: DanceDataset, options: EvaluationOptions) -> tuple[LoadedStyleClassifier, str]:
+    """The classifier given by ``options.classifier``, else the one cached in ``DATA/style_classifier/PRESET``
+    (trained there first when missing or trained on other clips). Returns it and the folder it lives in."""
+    from stage1_pose.device import resolve_device
+    from stage1_pose.style_classifier import (PRESETS, load_style_classifier, save_style_classifier,
+                                              train_on_dataset)
+
+    device = resolve_device(options.device)
+    if options.classifier is not None:
+        return load_style_classifier(options.classifier, device), str(options.classifier)
+    run_dir = ds.root / "style_classifier" / options.classifier_preset
+    key = hashlib.sha1(",".join(sorted(c.id for c in ds.clips("train"))).encode()).hexdigest()
+    meta_path = run_dir / "latest.json"
+    if meta_path.is_file() and json.loads(meta_path.read_text()).get("train_key") == key:
+        return load_style_classifier(run_dir, device), str(run_dir)
+    clf, test_acc = train_on_dataset(ds.root, PRESETS[options.classifier_preset], device)
+    save_style_classifier(run_dir, clf, {"train_key": key, "test_accuracy": test_acc})
+    return clf, str(run_dir)
+
+
+def _beat_figure(songs: list[Song], dances: dict[str, PoseSequence], out_dir: Path, seconds: float) -> None:
+    from stage1_pose.audio import onset_strength
+    from stage1_pose.kinematic_beats import kinematic_offsets
+    from stage1_pose.plots import plot_beat_alignment
+
+    song = songs[0]
+    fps = song.real.fps
+    n = min(len(song.real), int(round(seconds * fps)))
+    panels = {}
+    for name, dance in dances.items():
+        xy = dance.xy[:n]
+        panels[name] = (kinematic_offsets(xy, fps), kinematic_beats(xy, fps), velocity_minimum_beats(xy, fps))
+    onset = onset_strength(song.samples[: int(round(n / fps * song.sr))], song.sr, fps)
+    plot_beat_alignment(onset, song.beats[song.beats < n / fps], fps, panels, out_dir / "beat_alignment.png",
+                        f"test song {song.id}: music onset strength and kinematic offset strength")
+
+
+def run_evaluation(data_dir: str | os.PathLike, model_dirs: list[str], out_dir: str | os.PathLike,
+                   options: EvaluationOptions) -> list[RowResult]:
+    """Evaluate the baselines and every model in ``model_dirs`` on the test split of ``data_dir``.
+
+    Writes ``report.md``, ``report.json``, ``fid_over_time.png``, ``beat_alignment.png`` and
+    ``videos/<row>.mp4`` (first test song, ``video_seconds`` long, with the song) into ``out_dir``.
+    """
+    from stage1_pose.draw import write_skeleton_video
+    from stage1_pose.plots import plot_fid_over_time
+
+    if options.trials < 1 or options.seconds <= 0:
+        raise DancesynthError("--trials must be at least 1 and --seconds positive.")
+    out_dir = Path(out_dir)
+    (out_dir / "videos").mkdir(parents=True, exist_ok=True)
+    ds = DanceDataset(data_dir)
+    clf, clf_dir = obtain_classifier(ds, options)
+    if list(clf.styles) != list(ds.styles):
+        raise DancesynthError(f"The style classifier knows styles {clf.styles} but the dataset has {list(ds.styles)}; "
+                              "train one on this dataset with `dancesynth train-style-classifier`.")
+    songs = load_songs(ds, options.seconds)
+    ref = load_reference(ds, clf)
+    contenders = baseline_contenders(songs, ref) + [model_contender(m, songs, options.device) for m in model_dirs]
+    samples: dict[str, PoseSequence] = {}
+
+    def keep_first(row: str, i: int, seed: int, dance: PoseSequence) -> None:
+        if i == 0 and seed == 0:
+            samples[row] = dance
+
+    rows = [evaluate_contender(c, songs, ref, clf, options.trials, options.tolerance_frames, keep_first)
+            for c in contenders]
+    fps = songs[0].real.fps
+    window_seconds = clf.window_frames / fps
+    info = {"dataset": str(data_dir), "test songs": len(songs), "seconds per song": options.seconds,
+            "trials": options.trials, "style classifier": clf_dir, "classifier window (s)": window_seconds,
+            "tolerance_frames": options.tolerance_frames, "fps": fps, "models": ", ".join(model_dirs) or "none"}
+    write_report(out_dir, rows, info)
+    plot_fid_over_time({r.name: r.fid_curve for r in rows}, window_seconds, out_dir / "fid_over_time.png")
+    _beat_figure(songs, samples, out_dir, options.plot_seconds)
+    song = songs[0]
+    n_video = int(round(options.video_seconds * fps))
+    for name, dance in tqdm(samples.items(), desc="sample videos", unit="video"):
+        clip = dance.slice_frames(0, n_video)
+        audio = song.samples[: int(round(len(clip) / fps * song.sr))]
+        write_skeleton_video(clip, out_dir / "videos" / f"{_file_name(name)}.mp4", audio=audio, audio_sr=song.sr,
+                             size=(640, 360))
+    return rows
+
+
+def _file_name(row: str) -> str:
+    """A row name as a safe file name (letters, digits, ``-`` and ``_``)."""
+    return "".join(ch if ch.isalnum() or ch in "-_" else "_" for ch in row).strip("_")
