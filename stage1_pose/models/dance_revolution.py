@@ -1,0 +1,324 @@
+"""Dance Revolution (Huang et al., ICLR 2021): local-attention music encoder + LSTM dance decoder, trained
+with dynamic auto-condition curriculum learning.
+
+Encoder (Sec. 3.2): linear embedding of the 438-d music features, sinusoidal positional encoding, N post-norm
+transformer layers whose self-attention is local (window k, O(n·k) memory), giving ``z_i`` per frame.
+Decoder (Eq. 3-4): a 3-layer LSTM whose initial hidden and cell states are drawn from N(0, I) - the source of
+variety: another seed gives another dance - fed the previous pose (frame 0: the all-zero begin-of-pose);
+``y_i = [h_i; z_i] W + b``.
+Curriculum (Sec. 3.3): decoder inputs alternate ``p`` of its own predictions with ``q`` ground-truth frames,
+``p = f(epoch)`` growing with one of const, ⌊λt⌋, ⌊λt²⌋, ⌊λeᵗ⌋; L1 loss.
+
+Shapes: audio ``[B, T, feature_dim]`` standardised features (one row per pose frame); poses ``[B, T, 25, 2]``
+model coordinates (:func:`stage1_pose.skeleton.normalize`), flattened to 50 numbers per frame inside.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from stage1_pose.errors import DancesynthError
+from stage1_pose.models.base import Batch, Stage1Method
+from stage1_pose.models.local_attention import LocalSelfAttention
+from stage1_pose.skeleton import NUM_JOINTS
+
+POSE_DIM = NUM_JOINTS * 2
+SCHEDULES = ("const", "linear", "quadratic", "exponential")
+PRECISIONS = ("fp32", "int8")
+
+
+@dataclass(frozen=True)
+class DanceRevolutionConfig:
+    """Sizes, curriculum and optimisation settings.
+
+    ``window`` is the local-attention width k in frames; ``curriculum`` one of :data:`SCHEDULES` with
+    ``lam`` (λ) and ``q`` ground-truth frames per cycle (``const_p`` is p for the const schedule);
+    ``window_frames`` the training sequence length in frames; ``lr`` Adam's learning rate.
+    """
+
+    feature_dim: int = 438
+    d_model: int = 256
+    heads: int = 8
+    d_k: int = 64
+    d_v: int = 64
+    d_ff: int = 1024
+    layers: int = 2
+    window: int = 100
+    dropout: float = 0.1
+    lstm_hidden: int = 1024
+    lstm_layers: int = 3
+    curriculum: str = "linear"
+    lam: float = 0.01
+    q: int = 10
+    const_p: int = 10
+    lr: float = 1e-4
+    batch_size: int = 32
+    window_frames: int = 900
+    epochs: int = 10000
+
+    def __post_init__(self) -> None:
+        if self.curriculum not in SCHEDULES:
+            raise DancesynthError(f"Unknown curriculum {self.curriculum!r}; choose one of {', '.join(SCHEDULES)}.")
+
+    @classmethod
+    def preset(cls, name: str) -> "DanceRevolutionConfig":
+        """A named preset from :data:`DANCE_REVOLUTION_PRESETS`."""
+        if name not in DANCE_REVOLUTION_PRESETS:
+            raise DancesynthError(f"Unknown dance_revolution preset {name!r}; "
+                                  f"choose one of {', '.join(DANCE_REVOLUTION_PRESETS)}.")
+        return DANCE_REVOLUTION_PRESETS[name]
+
+
+DANCE_REVOLUTION_PRESETS: dict[str, DanceRevolutionConfig] = {
+    # Sec. 4.2 of the paper (d_z = 256, 8 heads, d_k = d_v = 64, FFN 1024, 2 layers, k = 100, LSTM 3 x 1024,
+    # n = 900, λ = 0.01, q = 10, Adam 1e-4, batch 32).
+    "paper": DanceRevolutionConfig(),
+    # CPU-sized: 6-s windows, narrow layers, and a curriculum that reaches p = q within the short run.
+    "small": DanceRevolutionConfig(d_model=64, heads=4, d_k=16, d_v=16, d_ff=128, layers=2, window=30,
+                                   lstm_hidden=128, lam=0.1, lr=1e-3, batch_size=16, window_frames=90, epochs=100),
+}
+
+
+def curriculum_p(schedule: str, epoch: int, lam: float, const_p: int, cap: int) -> int:
+    """Predicted frames per cycle at ``epoch`` (0-based): const, ⌊λt⌋, ⌊λt²⌋ or ⌊λeᵗ⌋, at most ``cap``."""
+    if schedule == "const":
+        value = float(const_p)
+    elif schedule == "linear":
+        value = lam * epoch
+    elif schedule == "quadratic":
+        value = lam * epoch ** 2
+    elif schedule == "exponential":
+        # Compared in log space: e^t overflows a float after t = 709.
+        value = cap if math.log(lam) + epoch >= math.log(cap + 1) else lam * math.exp(epoch)
+    else:
+        raise DancesynthError(f"Unknown curriculum {schedule!r}; choose one of {', '.join(SCHEDULES)}.")
+    return int(min(math.floor(value), cap))
+
+
+def predicted_inputs(frames: int, p: int, q: int) -> list[bool]:
+    """Which decoder inputs are the model's own predictions, for output steps ``0 .. frames-1``.
+
+    Input 0 is the begin-of-pose; then ``p`` predicted and ``q`` ground-truth inputs alternate (Sec. 3.3,
+    ``Y_in = {y0, ŷ1..ŷp, y(p+1)..y(p+q), ŷ(p+q+1), ...}``). ``p = 0`` is teacher forcing.
+    """
+    return [i >= 1 and (i - 1) % (p + q) < p for i in range(frames)]
+
+
+def sinusoidal_encoding(n: int, dim: int, device: torch.device | None = None) -> torch.Tensor:
+    """``[n, dim]`` sinusoidal positional encoding (Vaswani et al.), built for any length n."""
+    pos = torch.arange(n, dtype=torch.float32, device=device)[:, None]
+    freq = torch.exp(torch.arange(0, dim, 2, dtype=torch.float32, device=device) * (-math.log(10000.0) / dim))
+    out = torch.zeros(n, dim, device=device)
+    out[:, 0::2] = torch.sin(pos * freq)
+    out[:, 1::2] = torch.cos(pos * freq[: dim // 2])
+    return out
+
+
+class EncoderLayer(nn.Module):
+    """Local self-attention and feed-forward sublayers, each ``LayerNorm(x + Dropout(sublayer(x)))``."""
+
+    def __init__(self, cfg: DanceRevolutionConfig) -> None:
+        super().__init__()
+        self.attention = LocalSelfAttention(cfg.d_model, cfg.heads, cfg.d_k, cfg.d_v, cfg.window, cfg.dropout)
+        self.ffn = nn.Sequential(nn.Linear(cfg.d_model, cfg.d_ff), nn.ReLU(), nn.Linear(cfg.d_ff, cfg.d_model))
+        self.norm1, self.norm2 = nn.LayerNorm(cfg.d_model), nn.LayerNorm(cfg.d_model)
+        self.drop = nn.Dropout(cfg.dropout)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        x = self.norm1(x + self.drop(self.attention(x)))
+        return self.norm2(x + self.drop(self.ffn(x)))
+
+
+class MusicEncoder(nn.Module):
+    """``[B, T, feature_dim]`` -> ``[B, T, d_model]`` latent music ``z``; memory O(T · window)."""
+
+    def __init__(self, cfg: DanceRevolutionConfig) -> None:
+        super().__init__()
+        self.embed = nn.Linear(cfg.feature_dim, cfg.d_model)
+        self.drop = nn.Dropout(cfg.dropout)
+        self.layers = nn.ModuleList(EncoderLayer(cfg) for _ in range(cfg.layers))
+
+    def forward(self, audio: torch.Tensor) -> torch.Tensor:
+        x = self.embed(audio)
+        x = self.drop(x + sinusoidal_encoding(x.shape[1], x.shape[2], x.device))
+        for layer in self.layers:
+            x = layer(x)
+        return x
+
+
+class LSTMStepper:
+    """Runs a multi-layer ``nn.LSTM`` one frame at a time with one fused gate matmul per layer.
+
+    Per layer ``gates = [x; h] @ [W_ih W_hh]^T + b`` (PyTorch's gate order i, f, g, o). Batch-1 decoding is
+    bound by reading these weights once per frame, so ``precision="int8"`` stores them as int8 per output
+    row (scale = row max / 127) and multiplies in bfloat16 (CPU inference only: a quarter of the bytes,
+    and the paper-size LSTM then fits in a 32 MB L3 cache). ``"fp32"`` is exact and differentiable.
+    """
+
+    def __init__(self, lstm: nn.LSTM, precision: str = "fp32") -> None:
+        if precision not in PRECISIONS:
+            raise DancesynthError(f"Unknown precision {precision!r}; choose one of {', '.join(PRECISIONS)}.")
+        self.layers: list[tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]] = []
+        for layer in range(lstm.num_layers):
+            w = torch.cat([getattr(lstm, f"weight_ih_l{layer}"), getattr(lstm, f"weight_hh_l{layer}")], dim=1)
+            b = getattr(lstm, f"bias_ih_l{layer}") + getattr(lstm, f"bias_hh_l{layer}")
+            if precision == "int8":
+                # The int8 kernel needs the reduction length padded to a multiple of 64.
+                w = F.pad(w.detach(), (0, -w.shape[1] % 64))
+                scale = w.abs().amax(dim=1).clamp_min(1e-12) / 127.0
+                self.layers.append((torch.round(w / scale[:, None]).to(torch.int8), b.detach(), scale.bfloat16()))
+            else:
+                self.layers.append((w.t(), b, None))
+
+    def step(self, x: torch.Tensor, h: list[torch.Tensor],
+             c: list[torch.Tensor]) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
+        """One frame: ``x [B, input]``, per-layer ``h``, ``c`` ``[B, hidden]`` -> the new ``h``, ``c`` lists."""
+        new_h, new_c = [], []
+        for (w, b, scale), h_l, c_l in zip(self.layers, h, c):
+            if scale is None:
+                gates = torch.addmm(b, torch.cat([x, h_l], dim=1), w)
+            else:
+                inputs = x.new_zeros(x.shape[0], w.shape[1], dtype=torch.bfloat16)
+                inputs[:, :x.shape[1]] = x
+                inputs[:, x.shape[1]:x.shape[1] + h_l.shape[1]] = h_l
+                gates = torch._weight_int8pack_mm(inputs, w, scale).float() + b
+            i, f, g, o = gates.chunk(4, dim=1)
+            c_l = torch.sigmoid(f) * c_l + torch.sigmoid(i) * torch.tanh(g)
+            x = torch.sigmoid(o) * torch.tanh(c_l)
+            new_h.append(x)
+            new_c.append(c_l)
+        return new_h, new_c
+
+
+class DanceDecoder(nn.Module):
+    """The 3-layer LSTM and the output layer ``y_i = [h_i; z_i] W + b``.
+
+    The LSTM is one ``nn.LSTM`` (the same maths as stacked LSTM cells), so runs of known inputs - the
+    ground-truth segments of the curriculum - go through it in one fused call; predicted frames step one
+    at a time through :class:`LSTMStepper`. ``W`` is split into its ``h`` and ``z`` parts so the ``z``
+    part is one matmul for all frames.
+    """
+
+    def __init__(self, cfg: DanceRevolutionConfig) -> None:
+        super().__init__()
+        self.lstm = nn.LSTM(POSE_DIM, cfg.lstm_hidden, num_layers=cfg.lstm_layers, batch_first=True)
+        self.out_h = nn.Linear(cfg.lstm_hidden, POSE_DIM, bias=False)
+        self.out_z = nn.Linear(cfg.d_model, POSE_DIM)
+
+    def initial_state(self, batch: int, device: torch.device,
+                      generator: torch.Generator | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """``(h0, c0)``, each ``[layers, batch, hidden]`` from N(0, I) (drawn on ``generator``'s device)."""
+        shape = (2, self.lstm.num_layers, batch, self.lstm.hidden_size)
+        state = torch.randn(shape, generator=generator, device=None if generator is None else generator.device)
+        state = state.to(device)
+        return state[0].contiguous(), state[1].contiguous()
+
+    def forward(self, z: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor], targets: torch.Tensor,
+                predicted: list[bool]) -> torch.Tensor:
+        """Training: ``z [B, T, d_model]``, ``targets [B, T, 50]`` -> poses ``[B, T, 50]``.
+
+        Input i is the begin-of-pose (i = 0), the model's previous output where ``predicted[i]``, else
+        ``targets[:, i-1]``.
+        """
+        frames = z.shape[1]
+        zw = self.out_z(z)
+        shifted = torch.cat([targets.new_zeros(targets.shape[0], 1, POSE_DIM), targets[:, :-1]], dim=1)
+        stepper = LSTMStepper(self.lstm)
+        h, c = list(state[0].unbind(0)), list(state[1].unbind(0))
+        outputs: list[torch.Tensor] = []
+        i = 0
+        while i < frames:
+            if predicted[i]:
+                h, c = stepper.step(outputs[-1][:, -1], h, c)
+                outputs.append((self.out_h(h[-1]) + zw[:, i])[:, None])
+                i += 1
+                continue
+            j = i + 1
+            while j < frames and not predicted[j]:
+                j += 1
+            seq, (hs, cs) = self.lstm(shifted[:, i:j], (torch.stack(h), torch.stack(c)))
+            h, c = list(hs.unbind(0)), list(cs.unbind(0))
+            outputs.append(self.out_h(seq) + zw[:, i:j])
+            i = j
+        return torch.cat(outputs, dim=1)
+
+    @torch.no_grad()
+    def generate(self, z: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor],
+                 stepper: LSTMStepper | None = None) -> torch.Tensor:
+        """Free running: ``z [B, T, d_model]`` -> poses ``[B, T, 50]``, each frame fed back as the next input.
+
+        ``stepper`` (default: exact fp32 on the current weights) lets inference reuse prepared weights.
+        """
+        batch, frames, _ = z.shape
+        zw = self.out_z(z)
+        stepper = stepper or LSTMStepper(self.lstm)
+        h, c = list(state[0].unbind(0)), list(state[1].unbind(0))
+        out = z.new_empty(batch, frames, POSE_DIM)
+        y = z.new_zeros(batch, POSE_DIM)
+        for i in range(frames):
+            h, c = stepper.step(y, h, c)
+            y = self.out_h(h[-1]) + zw[:, i]
+            out[:, i] = y
+        return out
+
+
+class DanceRevolution(Stage1Method):
+    """Dance Revolution as a stage-1 method; one optimizer ``main`` (Adam)."""
+
+    method_name = "dance_revolution"
+    feature_kind = "dance_revolution"
+
+    def __init__(self, config: DanceRevolutionConfig) -> None:
+        super().__init__(config)
+        self.encoder = MusicEncoder(config)
+        self.decoder = DanceDecoder(config)
+        self.epoch = 0
+        # Prepared decoding weights for inference (see set_inference_precision); None = exact, rebuilt per call.
+        self._stepper: LSTMStepper | None = None
+
+    @property
+    def p(self) -> int:
+        """Predicted frames per curriculum cycle at the current epoch."""
+        cfg = self.config
+        return curriculum_p(cfg.curriculum, self.epoch, cfg.lam, cfg.const_p, cfg.window_frames)
+
+    def configure_optimizers(self) -> dict[str, torch.optim.Optimizer]:
+        return {"main": torch.optim.Adam(self.parameters(), lr=self.config.lr)}
+
+    def training_step(self, batch: Batch, epoch: int) -> dict[str, float]:
+        self.epoch = epoch
+        target = batch.poses.flatten(2)
+        frames = target.shape[1]
+        z = self.encoder(batch.audio)
+        state = self.decoder.initial_state(target.shape[0], target.device)
+        pred = self.decoder(z, state, target, predicted_inputs(frames, self.p, self.config.q))
+        loss = F.l1_loss(pred, target)
+        self.optimize("main", loss)
+        return {"l1": loss.item(), "p": float(self.p)}
+
+    @torch.no_grad()
+    def generate(self, audio: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
+        """``[B, T, feature_dim]`` -> ``[B, T, 25, 2]`` for any T; the initial LSTM state comes from ``generator``."""
+        z = self.encoder(audio)
+        state = self.decoder.initial_state(audio.shape[0], audio.device, generator)
+        stepper = self._stepper if audio.device.type == "cpu" else None
+        return self.decoder.generate(z, state, stepper).reshape(audio.shape[0], audio.shape[1], NUM_JOINTS, 2)
+
+    def set_inference_precision(self, precision: str) -> None:
+        """Freeze the current weights for fast decoding: ``"int8"`` quantises the LSTM (CPU only, about 3x
+        faster at batch 1), ``"fp32"`` keeps them exact. Call after loading weights and before generating;
+        GPUs always decode in fp32."""
+        with torch.no_grad():
+            self._stepper = LSTMStepper(self.decoder.lstm, precision)
+
+    def curriculum_state(self) -> dict[str, Any]:
+        return {"schedule": self.config.curriculum, "epoch": self.epoch, "p": self.p, "q": self.config.q}
+
+    def load_curriculum_state(self, state: dict[str, Any]) -> None:
+        self.epoch = int(state.get("epoch", 0))
