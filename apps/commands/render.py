@@ -27,9 +27,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-normalize", action="store_true", help="use the poses as they are (target canvas)")
     parser.add_argument("--no-optimize", action="store_true", help="plain PyTorch forward (slower, for debugging)")
     parser.add_argument("--device", default="auto", help="auto, cpu or cuda")
+    parser.add_argument("--threads", type=int, metavar="N",
+                        help="CPU threads for torch (default: torch's choice; 1 is faster on a busy machine)")
 
 
 def run(args: argparse.Namespace) -> None:
+    import torch
+
+    if args.threads:
+        torch.set_num_threads(args.threads)
     from stage1_pose.media import decode_audio
     from stage1_pose.skeleton import PoseSequence
     from stage2_video.infer import load_appearance_model, render_video

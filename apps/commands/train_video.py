@@ -44,6 +44,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sample-every", type=int, default=200, metavar="STEPS")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--device", default="auto", help="auto, cpu or cuda")
+    parser.add_argument("--threads", type=int, metavar="N",
+                        help="CPU threads for torch (default: torch's choice; 1 is faster on a busy machine)")
 
 
 def _size(text: str) -> dict:
@@ -55,6 +57,10 @@ def _size(text: str) -> dict:
 
 
 def run(args: argparse.Namespace) -> None:
+    import torch
+
+    if args.threads:
+        torch.set_num_threads(args.threads)
     from stage2_video.train import TrainOptions, train_video
 
     overrides = _size(args.size) if args.size else {}

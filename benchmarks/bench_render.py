@@ -1,0 +1,93 @@
+"""Rendering speed of the appearance model on CPU: plain PyTorch forward vs the optimised renderer.
+
+For each preset and size, renders the same pose sequence twice through the full per-frame path (label map,
+generator conditioned on the previous frame, uint8 frame): once with the plain eval-mode forward under
+``torch.no_grad`` (the reference) and once with :func:`stage2_video.infer.optimize_generator` (what
+`dancesynth render` uses). Prints frames/s, the speed-up and the largest pixel difference (0-255 levels) between
+the two networks on identical inputs (each frame conditioned on the plain run's previous frame, so rounding
+differences do not compound through the random network's recursion); "unchanged output" means <= 1.
+Weights are random (speed does not depend on them).
+
+    python benchmarks/bench_render.py                      # small and paper presets at 256 and 512 px
+    python benchmarks/bench_render.py --presets small --sizes 256 --frames 30 --threads 1
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import torch
+
+from stage1_pose.skeleton import PoseSequence
+from stage2_video.data import to_image
+from stage2_video.infer import AppearanceModel, optimize_generator, render_frames
+from stage2_video.models.pix2pixhd import Pix2PixHD, preset
+from stage2_video.render import label_maps, whole_canvas
+
+
+def dancing_poses(frames: int, size: int) -> PoseSequence:
+    """A pose swinging its limbs, filling most of a ``size`` x ``size`` canvas."""
+    rng = np.random.default_rng(0)
+    base = rng.uniform(0.25, 0.75, (25, 2)) * size
+    kp = np.ones((frames, 25, 3), np.float32)
+    kp[..., :2] = base + 0.05 * size * np.sin(np.arange(frames)[:, None, None] / 3 + rng.uniform(0, 6, (25, 2)))
+    return PoseSequence(kp, 15.0, size, size)
+
+
+def timed_render(model: AppearanceModel, poses: PoseSequence, warmup: int = 2) -> float:
+    """Frames/s of :func:`render_frames` over the frames after ``warmup``."""
+    count, start = 0, None
+    for count, _ in enumerate(render_frames(model, poses, normalize=False), start=1):
+        if count == warmup:
+            start = time.perf_counter()
+    return (count - warmup) / (time.perf_counter() - start)
+
+
+def max_step_diff(plain: AppearanceModel, fast: AppearanceModel, poses: PoseSequence) -> int:
+    """Largest 0-255 difference between the two models' frames, both conditioned on plain's previous frame."""
+    worst, previous = 0, None
+    for label in label_maps(poses, plain.framing):
+        with torch.no_grad():
+            ref = plain.step(label, previous)
+        out = fast.step(label, previous)
+        worst = max(worst, int(np.abs(to_image(ref[0]).astype(int) - to_image(out[0]).astype(int)).max()))
+        previous = ref
+    return worst
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--presets", nargs="+", default=["small", "paper"])
+    parser.add_argument("--sizes", nargs="+", type=int, default=[256, 512])
+    parser.add_argument("--frames", type=int, default=20, help="frames per measurement (paper preset: a quarter)")
+    parser.add_argument("--threads", type=int, help="torch CPU threads (default: torch's choice)")
+    args = parser.parse_args()
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    device = torch.device("cpu")
+    print(f"torch {torch.__version__}, {torch.get_num_threads()} threads; CPU shared with other jobs: "
+          "absolute numbers vary with their load, the ratio column is the comparison.")
+    print(f"{'preset':<7}{'size':>6}{'plain fps':>11}{'optimised fps':>15}{'ratio':>7}{'max |diff| (0-255)':>20}")
+    for name in args.presets:
+        for size in args.sizes:
+            config = preset(name, width=size, height=size)
+            torch.manual_seed(0)
+            generator = Pix2PixHD(config).generator.eval()
+            frames = max(4, args.frames // 4) if name == "paper" else args.frames
+            poses = dancing_poses(frames + 2, size)
+            framing = whole_canvas(size, size, size, size)
+            plain = AppearanceModel(generator, config, framing, None, 15.0, device)
+            with torch.no_grad():
+                plain_fps = timed_render(plain, poses)
+            fast = AppearanceModel(optimize_generator(generator, 6, size, size, device), config, framing, None,
+                                   15.0, device)
+            fast_fps = timed_render(fast, poses)
+            diff = max_step_diff(plain, fast, poses)
+            print(f"{name:<7}{size:>6}{plain_fps:>11.2f}{fast_fps:>15.2f}{fast_fps / plain_fps:>7.2f}{diff:>20d}",
+                  flush=True)
+
+
+if __name__ == "__main__":
+    main()

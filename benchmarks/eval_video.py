@@ -1,0 +1,89 @@
+"""Held-out quality of a trained appearance model (a `dancesynth train-video` run folder).
+
+Renders the held-out part of the target video (the last ``val_fraction``, never trained on) from its poses,
+frame after frame as `dancesynth render` does, and prints:
+  * SSIM and PSNR (dB) of generated vs real frames (model resolution);
+  * PCK@0.1 (torso size) between the pose BlazePose re-extracts from the generated frames and the commanded
+    pose; the same extraction on the real frames is printed as the ceiling the extractor allows.
+
+    python benchmarks/eval_video.py runs/synth --frames 120 --save-video held_out.mp4
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from stage1_pose.checkpoint import load_meta
+from stage1_pose.media import VideoWriter
+from stage1_pose.skeleton import PoseSequence
+from stage2_video.data import POSES_FILE, frames_file, split_ranges
+from stage2_video.extract import extract_poses
+from stage2_video.infer import load_appearance_model, render_frames
+from stage2_video.models.pix2pixhd import Pix2PixHDConfig
+from stage2_video.quality import pck, psnr, ssim
+from stage2_video.render import Framing
+from stage2_video.train import KIND
+
+
+def framed(seq: PoseSequence, framing: Framing) -> PoseSequence:
+    """``seq`` in model-image pixels."""
+    kp = seq.keypoints.copy()
+    kp[..., :2] = framing.points(kp[..., :2])
+    return PoseSequence(kp, seq.fps, framing.out_width, framing.out_height)
+
+
+def extracted(frames: list[np.ndarray], fps: float, folder: Path, name: str) -> PoseSequence:
+    path = folder / f"{name}.mp4"
+    with VideoWriter(path, fps, frames[0].shape[1], frames[0].shape[0]) as writer:
+        for frame in frames:
+            writer.write(frame)
+    return extract_poses(path, progress=False).poses
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("run_dir", type=Path)
+    parser.add_argument("--frames", type=int, default=0, help="score only the first N held-out frames (0: all)")
+    parser.add_argument("--save-video", type=Path, help="also write real | generated side by side")
+    parser.add_argument("--device", default="auto")
+    parser.add_argument("--threads", type=int)
+    args = parser.parse_args()
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    meta = load_meta(args.run_dir, KIND)
+    config = Pix2PixHDConfig.from_dict(meta["config"])
+    model = load_appearance_model(args.run_dir, args.device)
+    poses = PoseSequence.load(args.run_dir / POSES_FILE)
+    real = np.load(args.run_dir / frames_file(model.framing), mmap_mode="r")
+    _, held_out = split_ranges(len(poses), config.val_fraction)
+    stop = held_out.start + args.frames if args.frames else held_out.stop
+    commanded = poses.slice_frames(held_out.start, min(stop, held_out.stop))
+    generated = list(tqdm(render_frames(model, commanded, normalize=False), total=len(commanded), desc="render"))
+    reals = [np.asarray(real[t]) for t in range(held_out.start, held_out.start + len(commanded))]
+    s = [ssim(g, r) for g, r in zip(generated, reals)]
+    p = [psnr(g, r) for g, r in zip(generated, reals)]
+    target = framed(commanded, model.framing)
+    with tempfile.TemporaryDirectory() as tmp:
+        pck_gen = pck(extracted(generated, poses.fps, Path(tmp), "generated"), target)
+        pck_real = pck(extracted(reals, poses.fps, Path(tmp), "real"), target)
+    if args.save_video:
+        with VideoWriter(args.save_video, poses.fps, 2 * config.width, config.height) as writer:
+            for g, r in zip(generated, reals):
+                writer.write(np.concatenate([r, g], axis=1))
+    print(f"run {args.run_dir}: step {meta['step']}, epoch {meta['epoch']}, {config.width}x{config.height}, "
+          f"held-out frames {held_out.start}-{held_out.start + len(commanded) - 1}")
+    print(f"{'metric':<34}{'value':>8}")
+    print(f"{'SSIM (mean)':<34}{np.mean(s):>8.3f}")
+    print(f"{'PSNR dB (mean)':<34}{np.mean(p):>8.2f}")
+    print(f"{'PCK@0.1 generated vs commanded':<34}{pck_gen:>8.3f}")
+    print(f"{'PCK@0.1 real frames (ceiling)':<34}{pck_real:>8.3f}")
+
+
+if __name__ == "__main__":
+    main()
