@@ -100,17 +100,24 @@ def _upright(image: np.ndarray, rotation: int) -> np.ndarray:
     return np.ascontiguousarray(np.rot90(image, k=quarter_turns)) if quarter_turns else image
 
 
-def _decoded_frames(path: str | os.PathLike) -> Iterator[av.VideoFrame]:
+def _video_stream(container: av.container.InputContainer, path: str | os.PathLike) -> av.video.stream.VideoStream:
+    if not container.streams.video:
+        raise DancesynthError(f"{path} has no video stream; choose a video file.")
+    return container.streams.video[0]
+
+
+def _decoded_frames(path: str | os.PathLike, limit: int | None = None) -> Iterator[av.VideoFrame]:
+    """Decoded frames of the first video stream (at most ``limit``); at least one, else DancesynthError."""
     with _open_input(path) as container:
-        if not container.streams.video:
-            raise DancesynthError(f"{path} has no video stream; choose a video file.")
-        stream = container.streams.video[0]
+        stream = _video_stream(container, path)
         stream.thread_type = "AUTO"
         count = 0
         try:
             for frame in container.decode(stream):
                 count += 1
                 yield frame
+                if count == limit:
+                    return
         except av.FFmpegError as e:
             raise DancesynthError(f"The video {path} is corrupt after {count} frames ({e}); re-encode or re-download it.") from e
         if count == 0:
@@ -120,12 +127,11 @@ def _decoded_frames(path: str | os.PathLike) -> Iterator[av.VideoFrame]:
 def probe_video(path: str | os.PathLike) -> VideoInfo:
     """Frame rate, upright size, frame count, duration and rotation of the first video stream.
 
-    Decodes only the first frame (to read the rotation the container declares).
+    Decodes only the first frame (to read the rotation the container declares). For a variable-frame-rate
+    video ``fps`` is the average rate.
     """
     with _open_input(path) as container:
-        if not container.streams.video:
-            raise DancesynthError(f"{path} has no video stream; choose a video file.")
-        stream = container.streams.video[0]
+        stream = _video_stream(container, path)
         rate = stream.average_rate or stream.guessed_rate or stream.base_rate
         if not rate:
             raise DancesynthError(f"{path} declares no frame rate; re-encode it with a constant frame rate.")
@@ -137,7 +143,7 @@ def probe_video(path: str | os.PathLike) -> VideoInfo:
         else:
             duration = 0.0
         num_frames = int(stream.frames) or int(round(duration * fps))
-    first = next(_decoded_frames(path))
+    (first,) = _decoded_frames(path, limit=1)
     rotation = int(first.rotation)
     width, height = first.width, first.height
     if int(round(rotation / 90.0)) % 2:
@@ -309,22 +315,29 @@ def mux_audio(video_path: str | os.PathLike, audio_path: str | os.PathLike, out_
     ``start_seconds`` seconds on, as AAC cut or padded to the video's duration. Written atomically."""
     info = probe_video(video_path)
     song = decode_audio(audio_path, AAC_RATE)
-    song = song[int(round(max(start_seconds, 0.0) * AAC_RATE)):]
-    with _open_input(video_path) as source, atomic_path(out_path) as tmp, \
-            av.open(str(tmp), mode="w", format="mp4") as target:
-        in_video = source.streams.video[0]
-        out_video = target.add_stream_from_template(in_video)
-        track = _AudioTrack(target, song, AAC_RATE)
-        last_seconds = 0.0
-        for packet in source.demux(in_video):
-            if packet.dts is None:  # the demuxer's end-of-stream marker
-                continue
-            if packet.pts is not None:
-                last_seconds = max(last_seconds, float((packet.pts + (packet.duration or 0)) * packet.time_base))
-                track.feed_until(min(last_seconds, info.duration or last_seconds))
-            packet.stream = out_video
-            target.mux(packet)
-        track.finish(info.duration or last_seconds)
+    start = int(round(max(start_seconds, 0.0) * AAC_RATE))
+    if start >= len(song):
+        raise DancesynthError(f"{audio_path} is only {len(song) / AAC_RATE:.1f} s long, so it cannot start at "
+                              f"{start_seconds:g} s; choose an earlier start.")
+    try:
+        with _open_input(video_path) as source, atomic_path(out_path) as tmp, \
+                av.open(str(tmp), mode="w", format="mp4") as target:
+            in_video = source.streams.video[0]
+            out_video = target.add_stream_from_template(in_video)
+            track = _AudioTrack(target, song[start:], AAC_RATE)
+            last_seconds = 0.0
+            for packet in source.demux(in_video):
+                if packet.dts is None:  # the demuxer's end-of-stream marker
+                    continue
+                if packet.pts is not None:
+                    last_seconds = max(last_seconds, float((packet.pts + (packet.duration or 0)) * packet.time_base))
+                    track.feed_until(min(last_seconds, info.duration or last_seconds))
+                packet.stream = out_video
+                target.mux(packet)
+            track.finish(info.duration or last_seconds)
+    except av.FFmpegError as e:
+        raise DancesynthError(f"Could not copy the video of {video_path} into an mp4 ({e}); "
+                              "re-encode it as an H.264 mp4 with any video converter first.") from e
     return Path(out_path)
 
 

@@ -74,6 +74,8 @@ def test_short_audio_is_padded_and_mux_audio(tmp_path):
     assert streams["video_frames"] == 60 and abs(streams["audio_duration"] - 2.0) <= 1 / fps
     audio = media.decode_audio(out, 8000)
     assert np.abs(audio[:4000]).max() > 0.2 and np.abs(audio[-2000:]).max() < 0.01  # song ends after 1 s
+    with pytest.raises(DancesynthError, match="cannot start at 5 s"):
+        media.mux_audio(video, song, tmp_path / "late.mp4", start_seconds=5.0)
 
 
 def test_failed_write_leaves_no_file(tmp_path):
