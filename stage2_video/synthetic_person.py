@@ -252,7 +252,7 @@ def _draw_head(painter: _Painter, kp: np.ndarray, scale: float, look: PersonAppe
     painter.capsule(neck, centre, look.neck_width * scale, look.skin)
     angle = float(np.arctan2(up[1], up[0]))
     painter.ellipse(centre + 0.12 * r * up, (1.08 * r, 0.86 * r), angle, look.hair)
-    painter.ellipse(centre - 0.1 * r * up + 0.0, (0.9 * r, 0.72 * r), angle, look.skin)
+    painter.ellipse(centre - 0.1 * r * up, (0.9 * r, 0.72 * r), angle, look.skin)
     for eye in ("REye", "LEye"):
         p = _joint(kp, eye)
         if p is not None:
@@ -260,7 +260,7 @@ def _draw_head(painter: _Painter, kp: np.ndarray, scale: float, look: PersonAppe
 
 
 def _near_side(kp: np.ndarray) -> str:
-    """"R" or "L": the side nearer the camera, judged by which ear the pose estimator saw more surely."""
+    """The side nearer the camera ("R" or "L"), judged by which ear the pose estimator saw more surely."""
     return "R" if kp[JOINT_INDEX["REar"], 2] >= kp[JOINT_INDEX["LEar"], 2] else "L"
 
 
