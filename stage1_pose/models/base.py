@@ -59,6 +59,10 @@ class Stage1Method(nn.Module, abc.ABC):
     def generate(self, audio: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
         """``[B, T, D]`` audio features -> ``[B, T, 25, 2]`` model-coordinate poses, for any T."""
 
+    def prepare_inference(self, precision: str = "fp32") -> None:
+        """Called once after loading weights, before generating: a method may precompute or quantise weights
+        (``precision`` ``"fp32"`` or ``"int8"``) for faster :meth:`generate`. Default: nothing to do."""
+
     def curriculum_state(self) -> dict[str, Any]:
         """JSON-serialisable training-schedule state saved in checkpoints (empty by default)."""
         return {}

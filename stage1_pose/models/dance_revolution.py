@@ -279,7 +279,7 @@ class DanceRevolution(Stage1Method):
         self.encoder = MusicEncoder(config)
         self.decoder = DanceDecoder(config)
         self.epoch = 0
-        # Prepared decoding weights for inference (see set_inference_precision); None = exact, rebuilt per call.
+        # Prepared decoding weights for inference (see prepare_inference); None = exact, rebuilt per call.
         self._stepper: LSTMStepper | None = None
 
     @property
@@ -310,7 +310,7 @@ class DanceRevolution(Stage1Method):
         stepper = self._stepper if audio.device.type == "cpu" else None
         return self.decoder.generate(z, state, stepper).reshape(audio.shape[0], audio.shape[1], NUM_JOINTS, 2)
 
-    def set_inference_precision(self, precision: str) -> None:
+    def prepare_inference(self, precision: str = "fp32") -> None:
         """Freeze the current weights for fast decoding: ``"int8"`` quantises the LSTM (CPU only, about 3x
         faster at batch 1), ``"fp32"`` keeps them exact. Call after loading weights and before generating;
         GPUs always decode in fp32."""

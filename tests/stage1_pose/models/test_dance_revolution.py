@@ -61,7 +61,7 @@ def test_int8_decoding_stays_close_to_fp32():
     model = DanceRevolution(TINY).eval()
     audio = torch.randn(1, 30, 12)
     exact = model.generate(audio, torch.Generator().manual_seed(0))
-    model.set_inference_precision("int8")
+    model.prepare_inference("int8")
     fast = model.generate(audio, torch.Generator().manual_seed(0))
     assert (fast - exact).abs().max() < 0.05 * exact.abs().max()
     with pytest.raises(DancesynthError, match="precision"):

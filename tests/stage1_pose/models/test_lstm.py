@@ -1,0 +1,28 @@
+import torch
+
+# The machine is shared: one intra-op thread avoids OpenMP contention that makes tiny ops take milliseconds.
+torch.set_num_threads(1)
+
+from stage1_pose.models.base import Batch  # noqa: E402
+from stage1_pose.models.lstm import LSTMBaseline, LSTMConfig  # noqa: E402
+
+TINY = LSTMConfig(feature_dim=6, hidden=24, layers=2, dropout=0.0, lr=1e-2, window_frames=16)
+
+
+def test_shapes_and_determinism():
+    model = LSTMBaseline(TINY).eval()
+    audio = torch.randn(3, 41, 6)
+    a = model.generate(audio, torch.Generator().manual_seed(0))
+    assert a.shape == (3, 41, 25, 2)
+    assert torch.equal(a, model.generate(audio, torch.Generator().manual_seed(1)))
+
+
+def test_overfits_one_clip():
+    torch.manual_seed(0)
+    model = LSTMBaseline(TINY)
+    model._optimizers = model.configure_optimizers()
+    t = torch.linspace(0, 6.28, 16)
+    poses = torch.stack([torch.sin(t * 2 + j) for j in range(50)], dim=-1).reshape(1, 16, 25, 2)
+    batch = Batch(torch.randn(1, 16, 6), poses, torch.zeros(1, dtype=torch.long))
+    losses = [model.training_step(batch, 0)["l1"] for _ in range(150)]
+    assert losses[-1] < losses[0] / 5

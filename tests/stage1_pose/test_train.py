@@ -1,0 +1,113 @@
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+import torch
+from safetensors.torch import load_file
+
+# The machine is shared: one intra-op thread avoids OpenMP contention that makes tiny ops take milliseconds.
+torch.set_num_threads(1)
+
+from stage1_pose.errors import DancesynthError  # noqa: E402
+from stage1_pose.train import TrainerConfig, epoch_order, rank_batches, train  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+TINY_DR = dict(d_model=16, heads=2, d_k=8, d_v=8, d_ff=32, layers=1, window=6, dropout=0.1, lstm_hidden=32,
+               window_frames=30, batch_size=4, lam=1.0, q=3)
+TINY_LSTM = dict(hidden=16, layers=2, dropout=0.0, window_frames=30, batch_size=4)
+
+
+def _weights(run: Path) -> dict[str, torch.Tensor]:
+    return load_file(str(run / "latest.safetensors"))
+
+
+def test_data_order_depends_only_on_seed_and_epoch():
+    assert epoch_order(50, 0, 3) == epoch_order(50, 0, 3) != epoch_order(50, 0, 4)
+    batches = [rank_batches(list(range(10)), 4, r, 2) for r in (0, 1)]
+    assert batches == [[[0, 1], [4, 5]], [[2, 3], [6, 7]]]
+
+
+def test_run_folder_outputs(tiny_stage1_dataset, tmp_path):
+    meta = train("dance_revolution", tiny_stage1_dataset, tmp_path / "run", overrides=TINY_DR, epochs=2,
+                 options=TrainerConfig(preview_every=2, preview_seconds=2))
+    run = tmp_path / "run"
+    assert meta["epoch"] == 2 and meta["curriculum"]["p"] == 1 and meta["feature_kind"] == "dance_revolution"
+    assert len(meta["feature_stats"]["mean"]) == 438 and meta["canvas"] == [1280, 720] and meta["fps"] == 15.0
+    rows = (run / "metrics.csv").read_text().splitlines()
+    assert rows[0] == "epoch,step,seconds,l1,p" and len(rows) == 3
+    assert (run / "loss.png").stat().st_size > 0 and (run / "previews" / "epoch_0002.mp4").stat().st_size > 0
+    with pytest.raises(DancesynthError, match="already holds"):
+        train("dance_revolution", tiny_stage1_dataset, run, overrides=TINY_DR, epochs=2)
+    with pytest.raises(DancesynthError, match="--method dance_revolution"):
+        train("lstm", tiny_stage1_dataset, run, resume=True)
+    with pytest.raises(DancesynthError, match="no setting"):
+        train("lstm", tiny_stage1_dataset, tmp_path / "other", overrides={"hiden": 3})
+
+
+KILLER = """
+import os, signal, sys, torch
+torch.set_num_threads(1)
+import stage1_pose.train as t
+saves = []
+real_save = t.ckpt.save_checkpoint
+def save_then_die(*args, **kwargs):
+    real_save(*args, **kwargs)
+    saves.append(1)
+    if len(saves) == 2:
+        os.kill(os.getpid(), signal.SIGKILL)
+t.ckpt.save_checkpoint = save_then_die
+t.train("dance_revolution", sys.argv[1], sys.argv[2], overrides={overrides!r}, epochs=3,
+        options=t.TrainerConfig(checkpoint_every=4, preview_every=0))
+"""
+
+
+def test_resume_after_kill_9_gives_the_same_weights(tiny_stage1_dataset, tmp_path):
+    options = TrainerConfig(checkpoint_every=4, preview_every=0)
+    train("dance_revolution", tiny_stage1_dataset, tmp_path / "straight", overrides=TINY_DR, epochs=3, options=options)
+    script = tmp_path / "killer.py"
+    script.write_text(textwrap.dedent(KILLER.format(overrides=TINY_DR)))
+    env = {**os.environ, "PYTHONPATH": str(REPO)}
+    proc = subprocess.run([sys.executable, str(script), str(tiny_stage1_dataset), str(tmp_path / "killed")],
+                          env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == -9, proc.stderr[-2000:]
+    meta = train("dance_revolution", tiny_stage1_dataset, tmp_path / "killed", resume=True, options=options)
+    assert meta["epoch"] == 3
+    straight, resumed = _weights(tmp_path / "straight"), _weights(tmp_path / "killed")
+    assert straight.keys() == resumed.keys()
+    for k in straight:
+        assert torch.equal(straight[k], resumed[k]), k
+    csv_rows = (tmp_path / "killed" / "metrics.csv").read_text().splitlines()
+    assert [r.split(",")[0] for r in csv_rows[1:]] == ["0", "1", "2"]
+
+
+def _ddp_worker(rank: int, data: str, out: str, port: int) -> None:
+    os.environ.update(MASTER_ADDR="127.0.0.1", MASTER_PORT=str(port), RANK=str(rank), WORLD_SIZE="2")
+    torch.set_num_threads(1)
+    from stage1_pose.methods import make_config
+    from stage1_pose.train import Trainer
+    from stage1_pose.device import resolve_device
+
+    trainer = Trainer("lstm", Path(data), Path(out), make_config("lstm", "small", TINY_LSTM),
+                      TrainerConfig(epochs=2, preview_every=0), resolve_device("cpu"))
+    if rank == 0:
+        Path(out).mkdir(parents=True, exist_ok=True)
+    trainer.run()
+    torch.save(trainer.method.state_dict(), Path(out).parent / f"rank{rank}.pt")
+    torch.distributed.destroy_process_group()
+
+
+def test_two_process_training_equals_one_process_on_the_same_global_batch(tiny_stage1_dataset, tmp_path):
+    train("lstm", tiny_stage1_dataset, tmp_path / "single", overrides=TINY_LSTM, epochs=2,
+          options=TrainerConfig(preview_every=0))
+    port = 29500 + os.getpid() % 1000
+    torch.multiprocessing.spawn(_ddp_worker, args=(str(tiny_stage1_dataset), str(tmp_path / "ddp" / "run"), port),
+                                nprocs=2)
+    ranks = [torch.load(tmp_path / "ddp" / f"rank{r}.pt", weights_only=True) for r in (0, 1)]
+    single = _weights(tmp_path / "single")
+    for k in single:
+        assert torch.equal(ranks[0][k], ranks[1][k]), k
+        torch.testing.assert_close(ranks[0][k], single[k], rtol=1e-5, atol=1e-6)
+    assert _weights(tmp_path / "ddp" / "run").keys() == single.keys()
