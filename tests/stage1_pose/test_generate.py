@@ -1,0 +1,51 @@
+import numpy as np
+import pytest
+import torch
+from torch import nn
+
+# The machine is shared: one intra-op thread avoids OpenMP contention that makes tiny ops take milliseconds.
+torch.set_num_threads(1)
+
+from stage1_pose.checkpoint import save_checkpoint  # noqa: E402
+from stage1_pose.errors import DancesynthError  # noqa: E402
+from stage1_pose.generate import generate_from_features, load_pose_model  # noqa: E402
+from stage1_pose.train import TrainerConfig, train  # noqa: E402
+
+TINY_DR = dict(d_model=16, heads=2, d_k=8, d_v=8, d_ff=32, layers=1, window=6, lstm_hidden=32, window_frames=30,
+               batch_size=4)
+
+
+@pytest.fixture(scope="module")
+def run(tiny_stage1_dataset, tmp_path_factory):
+    out = tmp_path_factory.mktemp("gen") / "run"
+    train("dance_revolution", tiny_stage1_dataset, out, overrides=TINY_DR, epochs=1,
+          options=TrainerConfig(preview_every=0))
+    return out
+
+
+def test_generated_dance_is_in_pixels_any_length_and_seeded(run):
+    model = load_pose_model(run, "cpu", "fp32")
+    feats = np.random.default_rng(0).standard_normal((400, 438)).astype(np.float32)
+    a, b, c = (generate_from_features(model, feats, seed=s) for s in (1, 1, 2))
+    assert len(a) == 400 and a.fps == 15.0 and (a.width, a.height) == (1280, 720)
+    assert np.isfinite(a.keypoints).all() and (a.confidence == 1).all()
+    assert 0 < np.median(a.xy[..., 0]) < 1280
+    np.testing.assert_array_equal(a.keypoints, b.keypoints)
+    assert not np.allclose(a.keypoints, c.keypoints)
+    with pytest.raises(DancesynthError, match="438"):
+        generate_from_features(model, feats[:, :20])
+
+
+def test_int8_decoding_close_to_fp32_in_pixels(run):
+    feats = np.random.default_rng(1).standard_normal((60, 438)).astype(np.float32)
+    exact = generate_from_features(load_pose_model(run, "cpu", "fp32"), feats)
+    fast = generate_from_features(load_pose_model(run, "cpu", "int8"), feats)
+    assert np.abs(exact.xy - fast.xy).mean() < 5.0  # pixels on a 1280x720 canvas
+
+
+def test_a_stage2_run_is_refused_with_a_hint(tmp_path):
+    save_checkpoint(tmp_path, nn.Linear(2, 2), {"kind": "stage2"})
+    with pytest.raises(DancesynthError, match="appearance model.*pose model"):
+        load_pose_model(tmp_path)
+    with pytest.raises(DancesynthError, match="precision"):
+        load_pose_model(tmp_path, precision="int4")
