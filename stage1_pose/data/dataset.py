@@ -18,8 +18,8 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-from collections.abc import Iterable, Sequence
-from dataclasses import asdict, dataclass
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -27,92 +27,19 @@ import torch
 from tqdm import tqdm
 
 from stage1_pose import audio as audio_features
+# The layout helpers are part of this module's interface too (generators and importers use layout directly).
+from stage1_pose.data.layout import (MANIFEST, SPLITS, Clip, Manifest, clip_paths, create_layout, read_manifest,
+                                     split_songs, write_beats, write_manifest)
 from stage1_pose.errors import DancesynthError
 from stage1_pose.fileio import atomic_path
 from stage1_pose.models.base import Batch
 from stage1_pose.skeleton import PoseSequence, interpolate_missing, normalize
 
-MANIFEST = "manifest.json"
-MANIFEST_VERSION = 1
-SPLITS: tuple[str, ...] = ("train", "val", "test")
-# Fractions of songs in the val and test splits; the rest is train.
-HELD_OUT_FRACTION = 0.1
-_CLIP_KEYS = ("id", "song", "style", "split", "audio", "poses", "beats")
+__all__ = ["MANIFEST", "SPLITS", "Clip", "DanceDataset", "FeatureStats", "Manifest", "WindowDataset", "clip_paths",
+           "collate", "create_layout", "load_feature_stats", "read_manifest", "split_songs", "write_beats",
+           "write_manifest"]
 # Columns whose spread over the train split is below this are left unscaled instead of blown up.
 _MIN_STD = 1e-6
-
-
-@dataclass(frozen=True)
-class Clip:
-    """One manifest entry: a song and the dance performed to it (paths relative to the dataset folder)."""
-
-    id: str
-    song: str
-    style: str
-    split: str
-    audio: str
-    poses: str
-    beats: str
-
-
-def clip_paths(clip_id: str) -> dict[str, str]:
-    """The relative ``audio``, ``poses`` and ``beats`` paths of clip ``clip_id`` in the standard layout."""
-    return {"audio": f"audio/{clip_id}.wav", "poses": f"poses/{clip_id}.npz", "beats": f"beats/{clip_id}.json"}
-
-
-def create_layout(root: str | os.PathLike) -> Path:
-    """Create ``root`` and its ``audio``, ``poses`` and ``beats`` sub-folders (existing ones are kept)."""
-    root = Path(root)
-    try:
-        for sub in ("audio", "poses", "beats"):
-            (root / sub).mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise DancesynthError(f"Could not create the dataset folder {root} ({e.strerror or e}); "
-                              "check the path and its permissions.") from e
-    return root
-
-
-def write_json(path: str | os.PathLike, data: dict) -> None:
-    """Write ``data`` as JSON atomically."""
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(data, indent=1))
-
-
-def write_beats(path: str | os.PathLike, beats: np.ndarray, downbeats: np.ndarray, tempo: float, source: str) -> None:
-    """Write a beats file: beat and downbeat times in seconds, tempo in BPM, ``source`` exact or tracked."""
-    write_json(path, {"beats": [round(float(b), 6) for b in beats],
-                      "downbeats": [round(float(b), 6) for b in downbeats],
-                      "tempo": float(tempo), "source": source})
-
-
-def write_manifest(root: str | os.PathLike, fps: float, sample_rate: int, styles: Sequence[str],
-                   clips: Iterable[Clip]) -> Path:
-    """Write ``root/manifest.json`` atomically and return its path."""
-    path = Path(root) / MANIFEST
-    write_json(path, {"version": MANIFEST_VERSION, "fps": float(fps), "sample_rate": int(sample_rate),
-                      "styles": list(styles), "clips": [asdict(c) for c in clips]})
-    return path
-
-
-def split_songs(songs_by_style: dict[str, list[str]], rng: np.random.Generator) -> dict[str, str]:
-    """Assign every song to ``train``, ``val`` or ``test``, stratified by style.
-
-    Songs are shuffled within each style and dealt round-robin across styles, so the last songs of the deal
-    cover every style; the last ``round(10 %)`` go to test and the ``round(10 %)`` before them to val (at
-    least one each once there are 3 songs). Returns song -> split.
-    """
-    shuffled = [list(rng.permutation(songs)) for _, songs in sorted(songs_by_style.items())]
-    dealt = [s[i] for i in range(max(map(len, shuffled), default=0)) for s in shuffled if i < len(s)]
-    n = len(dealt)
-    held = max(1, int(round(n * HELD_OUT_FRACTION))) if n >= 3 else 0
-    splits = ["train"] * (n - 2 * held) + ["val"] * held + ["test"] * held
-    return {str(song): split for song, split in zip(dealt, splits)}
-
-
-def split_for_new_song(song: str) -> str:
-    """A stable split for a song added after the dataset was made: 80/10/10 by a hash of its id."""
-    bucket = int(hashlib.sha1(song.encode()).hexdigest(), 16) % 10
-    return "test" if bucket == 9 else "val" if bucket == 8 else "train"
 
 
 class DanceDataset:
@@ -127,29 +54,9 @@ class DanceDataset:
 
     def __init__(self, root: str | os.PathLike) -> None:
         self.root = Path(root)
-        path = self.root / MANIFEST
-        if not self.root.is_dir():
-            raise DancesynthError(f"The dataset folder {self.root} does not exist; "
-                                  "create one with `dancesynth make-dataset --out DIR`.")
-        if not path.is_file():
-            raise DancesynthError(f"{self.root} has no {MANIFEST}, so it is not a dancesynth dataset; "
-                                  "create one with `dancesynth make-dataset --out DIR`.")
-        try:
-            data = json.loads(path.read_text())
-            if data["version"] != MANIFEST_VERSION:
-                raise DancesynthError(f"{path} has version {data['version']}, but this dancesynth reads version "
-                                      f"{MANIFEST_VERSION}; re-create the dataset with `dancesynth make-dataset`.")
-            self.fps = float(data["fps"])
-            self.sample_rate = int(data["sample_rate"])
-            self.styles: tuple[str, ...] = tuple(str(s) for s in data["styles"])
-            self._clips = [Clip(**{k: str(c[k]) for k in _CLIP_KEYS}) for c in data["clips"]]
-        except (ValueError, KeyError, TypeError) as e:
-            raise DancesynthError(f"{path} is not a valid dataset manifest ({type(e).__name__}: {e}); "
-                                  "re-create the dataset with `dancesynth make-dataset`.") from e
-        for c in self._clips:
-            if c.split not in SPLITS or c.style not in self.styles:
-                raise DancesynthError(f"Clip {c.id} in {path} has split {c.split!r} / style {c.style!r}, not one of "
-                                      f"{SPLITS} / {self.styles}; fix the manifest or re-create the dataset.")
+        manifest = read_manifest(self.root)
+        self.fps, self.sample_rate, self.styles = manifest.fps, manifest.sample_rate, manifest.styles
+        self._clips = list(manifest.clips)
 
     def clips(self, split: str | None = None) -> list[Clip]:
         """The clips of ``split`` (``train``, ``val``, ``test``), or all clips when ``split`` is None."""

@@ -32,8 +32,10 @@ class Style:
             sit at segment ends, so these are the beats the dance hits.
         hit_fraction: fraction of a segment spent holding before moving (0 = legato minimum-jerk motion,
             larger = sharper hits that arrive on the beat).
+        ramp: seconds a segment takes to speed up from rest and to slow down to rest; in between the joints move
+            at constant speed. Short ramps make the sudden stops on beats that kinematic beat detectors find.
         bounce: knee bend on every beat in radians (0 = none).
-        sway_px: amplitude of the side-to-side sway of the hips, as a fraction of body height.
+        sway: amplitude of the side-to-side sway of the hips, as a fraction of body height.
     """
 
     name: str
@@ -51,8 +53,9 @@ class Style:
     moves: tuple[str, ...]
     segment_beats: tuple[int, ...]
     hit_fraction: float
+    ramp: float
     bounce: float
-    sway_px: float
+    sway: float
 
 
 BALLET = Style(
@@ -60,21 +63,21 @@ BALLET = Style(
     kick_gain=0.35, accent_kick=0.1, snare_gain=0.0, hihat_division=0,
     bass="pluck", pad="strings", lead="flute", melody_division=0.5,
     moves=("port_de_bras", "plie", "arabesque_arms", "tendu", "cambre", "arm_wave", "bras_ouverts"),
-    segment_beats=(2, 4), hit_fraction=0.0, bounce=0.0, sway_px=0.015,
+    segment_beats=(2, 4), hit_fraction=0.0, ramp=0.15, bounce=0.0, sway=0.015,
 )
 HIPHOP = Style(
     name="hiphop", bpm_range=(90.0, 105.0), minor_probability=0.8, chord_beats=4,
     kick_gain=0.7, accent_kick=0.3, snare_gain=0.5, hihat_division=2,
     bass="808", pad="keys", lead="bell", melody_division=1.0,
     moves=("bounce_hit", "arm_cross", "point", "chest_pop", "side_step", "arm_wave_hit", "squat_hold"),
-    segment_beats=(1, 2), hit_fraction=0.35, bounce=0.22, sway_px=0.01,
+    segment_beats=(1, 2), hit_fraction=0.1, ramp=0.08, bounce=0.1, sway=0.01,
 )
 POP = Style(
     name="pop", bpm_range=(115.0, 135.0), minor_probability=0.2, chord_beats=4,
     kick_gain=0.6, accent_kick=0.0, snare_gain=0.4, hihat_division=2,
     bass="synth", pad="bright", lead="square", melody_division=2.0,
     moves=("clap", "jump", "step_clap", "arm_pump", "disco_point", "jumping_jack", "hip_sway"),
-    segment_beats=(1, 2), hit_fraction=0.2, bounce=0.1, sway_px=0.02,
+    segment_beats=(1, 2), hit_fraction=0.2, ramp=0.1, bounce=0.1, sway=0.02,
 )
 
 STYLES: dict[str, Style] = {s.name: s for s in (BALLET, HIPHOP, POP)}

@@ -10,8 +10,8 @@ import soundfile
 import torch
 
 from stage1_pose.audio import FEATURE_KINDS, feature_dim
-from stage1_pose.data.dataset import (Clip, DanceDataset, WindowDataset, clip_paths, collate, create_layout,
-                                      split_songs, write_beats, write_manifest)
+from stage1_pose.data.dataset import DanceDataset, WindowDataset, collate
+from stage1_pose.data.layout import Clip, clip_paths, create_layout, split_songs, write_beats, write_manifest
 from stage1_pose.errors import DancesynthError
 from stage1_pose.models.base import Batch
 from stage1_pose.skeleton import PoseSequence
