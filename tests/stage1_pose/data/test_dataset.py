@@ -103,3 +103,36 @@ def test_window_dataset_shapes_for_every_feature_kind(tmp_path, kind):
     val = WindowDataset(tmp_path, "val", kind, 60, progress=False)
     assert len(val) == 1 and np.array_equal(val.stats.mean, train.stats.mean)
 
+
+
+def test_make_dataset_is_deterministic_and_splits_by_song(tmp_path):
+    from stage1_pose.data.make_dataset import make_dataset
+
+    one = DanceDataset(make_dataset(tmp_path / "one", clips=4, seconds=3.0, seed=7, workers=1, progress=False).parent)
+    two = DanceDataset(make_dataset(tmp_path / "two", clips=4, seconds=3.0, seed=7, workers=2, progress=False).parent)
+    assert one.styles == ("ballet", "hiphop", "pop")
+    assert [c.style for c in one.clips()] == ["ballet", "hiphop", "pop", "ballet"]
+    assert one.clips() == two.clips()
+    for a, b in zip(one.clips(), two.clips()):
+        assert np.array_equal(one.load_poses(a).keypoints, two.load_poses(b).keypoints)
+        assert np.array_equal(one.load_audio(a), two.load_audio(b))
+    song_splits = {}
+    for c in one.clips():
+        assert song_splits.setdefault(c.song, c.split) == c.split
+    assert {c.split for c in one.clips()} == {"train", "val", "test"}
+    clip = one.clips()[0]
+    assert len(one.load_poses(clip)) == 45 and one.load_audio(clip).shape == (3 * SR,)
+    assert one.load_beats(clip)["source"] == "exact"
+    other = make_dataset(tmp_path / "other", clips=1, seconds=3.0, seed=8, workers=1, progress=False).parent
+    assert not np.array_equal(DanceDataset(other).load_audio(DanceDataset(other).clips()[0]), one.load_audio(clip))
+
+
+def test_make_dataset_rejects_bad_arguments(tmp_path):
+    from stage1_pose.data.make_dataset import make_dataset
+
+    for kwargs, message in (({"clips": 0}, "--clips"), ({"seconds": 0.5}, "--seconds"), ({"workers": 0}, "--workers")):
+        with pytest.raises(DancesynthError, match=message):
+            make_dataset(tmp_path / "x", **kwargs)
+    make_dataset(tmp_path / "y", clips=1, seconds=2.0, workers=1, progress=False)
+    with pytest.raises(DancesynthError, match="already holds a dataset"):
+        make_dataset(tmp_path / "y", clips=1, seconds=2.0, workers=1)
