@@ -28,6 +28,18 @@ def swaying_poses(frames: int = 24, width: int = 64, height: int = 64) -> PoseSe
 
 
 @pytest.fixture(scope="session")
+def tiny_config() -> dict:
+    """Config overrides for a network small enough to train in a second."""
+    return dict(TINY)
+
+
+@pytest.fixture(scope="session")
+def make_poses():
+    """:func:`swaying_poses`, for tests that need pose sequences of their own."""
+    return swaying_poses
+
+
+@pytest.fixture(scope="session")
 def tiny_target(tmp_path_factory) -> tuple[Path, Path]:
     """(video.mp4, poses.npz): each frame shows the skeleton thickly drawn on a grey background."""
     folder = tmp_path_factory.mktemp("target")

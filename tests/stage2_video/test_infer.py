@@ -9,13 +9,11 @@ from stage1_pose.media import probe_video
 from stage1_pose.skeleton import PoseSequence
 from stage2_video.infer import load_appearance_model, render_frames, render_video
 
-from conftest import swaying_poses
 
-
-def test_render_streams_a_video_with_right_count_and_size(tiny_run, tmp_path):
+def test_render_streams_a_video_with_right_count_and_size(tiny_run, make_poses, tmp_path):
     model = load_appearance_model(tiny_run, "cpu")
     # poses from elsewhere: another canvas, smaller person, other fps -> normalised onto the target
-    src = swaying_poses(frames=9, width=200, height=120)
+    src = make_poses(frames=9, width=200, height=120)
     src = src.replace(src.keypoints * np.array([0.8, 0.8, 1], np.float32), fps=10.0)
     out = render_video(src, model, tmp_path / "out.mp4", progress=False)
     info = probe_video(out)

@@ -7,19 +7,17 @@ from safetensors.numpy import load_file
 from stage1_pose.errors import DancesynthError
 from stage2_video.train import TrainOptions, train_video
 
-from conftest import TINY
-
 
 def _rows(path):
     with open(path, newline="") as f:
         return list(csv.DictReader(f))
 
 
-def test_tiny_model_learns_to_reproduce_frames(tiny_target, tmp_path):
+def test_tiny_model_learns_to_reproduce_frames(tiny_target, tiny_config, tmp_path):
     video, poses = tiny_target
     meta = train_video(video, tmp_path, "small", TrainOptions(epochs=6, val_frames=4, sample_every=1000,
                                                               checkpoint_every=1000),
-                       poses=poses, device="cpu", overrides={**TINY, "lr": 2e-3})
+                       poses=poses, device="cpu", overrides={**tiny_config, "lr": 2e-3})
     rows = _rows(tmp_path / "losses.csv")
     l1 = np.array([float(r["g_l1"]) for r in rows])
     assert len(rows) == meta["step"] == 6 * 5
@@ -30,14 +28,14 @@ def test_tiny_model_learns_to_reproduce_frames(tiny_target, tmp_path):
     assert list((tmp_path / "samples").glob("step_*.png"))
 
 
-def test_resume_is_exact(tiny_target, tmp_path):
+def test_resume_is_exact(tiny_target, tiny_config, tmp_path):
     video, poses = tiny_target
     straight, split = tmp_path / "straight", tmp_path / "split"
     opts = dict(epochs=2, val_frames=2, sample_every=1000, checkpoint_every=1000)
-    train_video(video, straight, "small", TrainOptions(**opts), poses=poses, device="cpu", overrides=TINY)
-    train_video(video, split, "small", TrainOptions(**opts, max_steps=3), poses=poses, device="cpu", overrides=TINY)
+    train_video(video, straight, "small", TrainOptions(**opts), poses=poses, device="cpu", overrides=tiny_config)
+    train_video(video, split, "small", TrainOptions(**opts, max_steps=3), poses=poses, device="cpu", overrides=tiny_config)
     with pytest.raises(DancesynthError, match="--resume"):
-        train_video(video, split, "small", TrainOptions(**opts), poses=poses, device="cpu", overrides=TINY)
+        train_video(video, split, "small", TrainOptions(**opts), poses=poses, device="cpu", overrides=tiny_config)
     meta = train_video(video, split, "small", TrainOptions(**opts), resume=True, poses=poses, device="cpu")
     assert meta["step"] == 10
     a, b = load_file(straight / "latest.safetensors"), load_file(split / "latest.safetensors")
