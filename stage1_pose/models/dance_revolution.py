@@ -152,6 +152,19 @@ class MusicEncoder(nn.Module):
         return x
 
 
+def _quantize_rows(w_ih: torch.Tensor, w_hh: torch.Tensor, rows: int = 256) -> tuple[torch.Tensor, torch.Tensor]:
+    """``[W_ih W_hh]`` -> (int8 ``[4H, K]`` with K padded to a multiple of 64 as the int8 kernel needs, bfloat16
+    per-row scales); a block of rows at a time so no full-size float temporaries are made."""
+    n, k = w_ih.shape[0], w_ih.shape[1] + w_hh.shape[1]
+    q = torch.zeros(n, k + (-k % 64), dtype=torch.int8, device=w_ih.device)
+    scale = torch.empty(n, device=w_ih.device)
+    for r in range(0, n, rows):
+        block = torch.cat([w_ih[r:r + rows], w_hh[r:r + rows]], dim=1)
+        scale[r:r + rows] = block.abs().amax(dim=1).clamp_min(1e-12) / 127.0
+        q[r:r + rows, :k] = torch.round(block / scale[r:r + rows, None]).to(torch.int8)
+    return q, scale.bfloat16()
+
+
 class LSTMStepper:
     """Runs a multi-layer ``nn.LSTM`` one frame at a time with one fused gate matmul per layer.
 
@@ -164,23 +177,20 @@ class LSTMStepper:
     def __init__(self, lstm: nn.LSTM, precision: str = "fp32") -> None:
         if precision not in PRECISIONS:
             raise DancesynthError(f"Unknown precision {precision!r}; choose one of {', '.join(PRECISIONS)}.")
-        self.layers: list[tuple[torch.Tensor, torch.Tensor, torch.Tensor | None]] = []
+        self.layers: list[tuple[torch.Tensor, torch.Tensor | None, torch.Tensor]] = []
         for layer in range(lstm.num_layers):
-            w = torch.cat([getattr(lstm, f"weight_ih_l{layer}"), getattr(lstm, f"weight_hh_l{layer}")], dim=1)
+            w_ih, w_hh = getattr(lstm, f"weight_ih_l{layer}"), getattr(lstm, f"weight_hh_l{layer}")
             b = getattr(lstm, f"bias_ih_l{layer}") + getattr(lstm, f"bias_hh_l{layer}")
             if precision == "int8":
-                # The int8 kernel needs the reduction length padded to a multiple of 64.
-                w = F.pad(w.detach(), (0, -w.shape[1] % 64))
-                scale = w.abs().amax(dim=1).clamp_min(1e-12) / 127.0
-                self.layers.append((torch.round(w / scale[:, None]).to(torch.int8), b.detach(), scale.bfloat16()))
+                self.layers.append((*_quantize_rows(w_ih.detach(), w_hh.detach()), b.detach()))
             else:
-                self.layers.append((w.t(), b, None))
+                self.layers.append((torch.cat([w_ih, w_hh], dim=1).t(), None, b))
 
     def step(self, x: torch.Tensor, h: list[torch.Tensor],
              c: list[torch.Tensor]) -> tuple[list[torch.Tensor], list[torch.Tensor]]:
         """One frame: ``x [B, input]``, per-layer ``h``, ``c`` ``[B, hidden]`` -> the new ``h``, ``c`` lists."""
         new_h, new_c = [], []
-        for (w, b, scale), h_l, c_l in zip(self.layers, h, c):
+        for (w, scale, b), h_l, c_l in zip(self.layers, h, c):
             if scale is None:
                 gates = torch.addmm(b, torch.cat([x, h_l], dim=1), w)
             else:
