@@ -1,0 +1,76 @@
+"""Built-in dataset: generation time, how well a beat tracker finds the songs' beats, how well dances hit them.
+
+Generates ``--clips`` songs of ``--seconds`` seconds (default: the full 100 x 60 s dataset) into a temporary
+folder (or ``--out``), timing :func:`stage1_pose.data.make_dataset.make_dataset`. Then, per style:
+
+* ``beat F``: F-measure (+-70 ms) of :func:`stage1_pose.audio.beat_times` on each song against the exact beats
+  the song was synthesised with (mean and minimum over songs);
+* ``KB hit`` / ``VM hit``: fraction of the dance's kinematic beats (Dancing2Music offsets /
+  velocity minima) within +-1 pose frame of a music beat, and ``chance``: the same for as many random frames.
+
+    .venv/bin/python benchmarks/bench_dataset.py                          # 100 clips x 60 s
+    .venv/bin/python benchmarks/bench_dataset.py --clips 12 --seconds 20  # quick look
+"""
+
+from __future__ import annotations
+
+import argparse
+import multiprocessing
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from stage1_pose.audio import beat_f_measure, beat_times
+from stage1_pose.data.dataset import DanceDataset
+from stage1_pose.data.make_dataset import make_dataset
+from stage1_pose.kinematic_beats import kinematic_beats, velocity_minimum_beats
+from stage1_pose.skeleton import normalize
+
+
+def _hit_rate(found: np.ndarray, beat_frames: np.ndarray) -> float:
+    if len(found) == 0:
+        return float("nan")
+    return float(np.mean(np.abs(found[:, None] - beat_frames[None]).min(axis=1) <= 1))
+
+
+def _score(job: tuple[str, int]) -> tuple[str, float, float, float, float]:
+    root, index = job
+    ds = DanceDataset(root)
+    clip = ds.clips()[index]
+    reference = ds.load_beats(clip)["beats"]
+    f = beat_f_measure(beat_times(ds.load_audio(clip), ds.sample_rate), reference, tolerance=0.07)
+    poses = ds.load_poses(clip)
+    xy = normalize(poses)[0]
+    beat_frames = np.round(reference * ds.fps).astype(np.int64)
+    kb, vm = kinematic_beats(xy, ds.fps), velocity_minimum_beats(xy, ds.fps)
+    rng = np.random.default_rng(index)
+    chance = np.mean([_hit_rate(rng.integers(0, len(poses), len(kb)), beat_frames) for _ in range(20)])
+    return clip.style, f, _hit_rate(kb, beat_frames), _hit_rate(vm, beat_frames), float(chance)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--clips", type=int, default=100)
+    parser.add_argument("--seconds", type=float, default=60.0)
+    parser.add_argument("--workers", type=int, default=2)
+    parser.add_argument("--out", type=Path, help="keep the dataset here (default: a temporary folder)")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        root = args.out or Path(tmp) / "ds"
+        start = time.perf_counter()
+        make_dataset(root, clips=args.clips, seconds=args.seconds, workers=args.workers)
+        took = time.perf_counter() - start
+        with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
+            rows = pool.map(_score, [(str(root), i) for i in range(args.clips)])
+    print(f"\nmake_dataset: {args.clips} clips x {args.seconds:g} s with {args.workers} workers in {took:.1f} s\n")
+    print(f"{'style':8} {'clips':>5} {'beat F mean':>11} {'beat F min':>10} {'KB hit':>7} {'VM hit':>7} {'chance':>7}")
+    for style in sorted({r[0] for r in rows}) + ["all"]:
+        sel = np.array([r[1:] for r in rows if style in ("all", r[0])])
+        print(f"{style:8} {len(sel):5d} {sel[:, 0].mean():11.3f} {sel[:, 0].min():10.3f} "
+              f"{np.nanmean(sel[:, 1]):7.2f} {np.nanmean(sel[:, 2]):7.2f} {sel[:, 3].mean():7.2f}")
+
+
+if __name__ == "__main__":
+    main()
