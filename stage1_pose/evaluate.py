@@ -29,7 +29,7 @@ from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.errors import DancesynthError
 from stage1_pose.fileio import atomic_path
 from stage1_pose.kinematic_beats import kinematic_beats, velocity_minimum_beats
-from stage1_pose.skeleton import PoseSequence
+from stage1_pose.skeleton import PoseSequence, resample
 from stage1_pose.style_classifier import LoadedStyleClassifier
 
 MUSIC_FEATURE_KIND = "dancing2music"
@@ -178,14 +178,27 @@ def baseline_contenders(songs: list[Song], ref: Reference) -> list[Contender]:
             Contender(RANDOM_REAL, random_real), Contender(FROZEN, frozen, stochastic=False)]
 
 
-def model_contender(run_dir: str | os.PathLike, songs: list[Song], device: str) -> Contender:
-    """A row generating with the stage-1 model saved in ``run_dir``."""
-    from stage1_pose.generate import generate_dance, load_pose_model
+def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[Song], device: str) -> Contender:
+    """A row generating with the stage-1 model saved in ``run_dir``.
+
+    When the model runs at the dataset's frame rate, its input features come from the dataset's feature cache
+    (computed once per song, cut to the song's frames) instead of being extracted again for every seed.
+    """
+    from stage1_pose.generate import generate_dance, generate_from_features, load_pose_model
 
     model = load_pose_model(run_dir, device)
+    clips = {c.id: c for c in ds.clips()}
+    cached = model.fps == ds.fps
 
     def make(i: int, seed: int) -> PoseSequence:
-        return fit_length(generate_dance(model, songs[i].samples, songs[i].sr, seed=seed), len(songs[i].real))
+        song = songs[i]
+        if cached:
+            features = np.asarray(ds.load_features(clips[song.id], model.feature_kind)[: len(song.real)])
+            dance = generate_from_features(model, features, seed=seed)
+        else:
+            # Beat and window metrics count frames, so every row is judged at the dataset's frame rate.
+            dance = resample(generate_dance(model, song.samples, song.sr, seed=seed), song.real.fps)
+        return fit_length(dance, len(song.real))
 
     return Contender(Path(run_dir).name, make)
 
@@ -201,12 +214,14 @@ def trial_metrics(scores: list[DanceScores], songs: list[Song], ref: Reference, 
                   tolerance_frames: float) -> dict[str, float]:
     """Every per-trial metric of one row (one dance per song)."""
     music_frames = [s.beats * fps for s in songs]
+    windows = np.concatenate([s.windows for s in scores])
     out = {
-        "fid": metrics.frechet_distance(np.concatenate([s.windows for s in scores]), ref.window_features),
+        "fid": metrics.frechet_distance(windows, ref.window_features) if len(windows) >= 2 else float("nan"),
         "acc": metrics.style_accuracy(np.array([s.predicted for s in scores]), np.array([s.style for s in songs])),
         "beat_align": float(np.nanmean([metrics.beat_align_score(s.beats, d.vmin_beats / fps)
                                         for d, s in zip(scores, songs)])),
-        "diversity": metrics.diversity(np.stack([s.feature for s in scores])),
+        "diversity": (metrics.diversity(np.stack([s.feature for s in scores])) if len(scores) >= 2
+                      else float("nan")),
         "cross_modal": metrics.cross_modal_distance(np.stack([s.feature for s in scores]),
                                                     np.stack([s.music for s in songs]), ref.music,
                                                     ref.dance_features),
@@ -269,17 +284,28 @@ def markdown_table(rows: list[RowResult]) -> str:
     return "\n".join(lines)
 
 
+def _json_safe(value):
+    """NaN / infinity (undefined metrics) -> None, so report.json is strict JSON (null)."""
+    if isinstance(value, dict):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_json_safe(v) for v in value]
+    if isinstance(value, float) and not np.isfinite(value):
+        return None
+    return value
+
+
 def write_report(out_dir: Path, rows: list[RowResult], info: dict) -> None:
     """``report.md`` (settings + table + legend) and ``report.json`` (every number) in ``out_dir``."""
     data = {"settings": info, "rows": [{"name": r.name, "summary": r.summary(), "per_trial": r.per_trial,
                                         "multimodality": r.multimodality, "fid_over_time": r.fid_curve}
                                        for r in rows]}
     with atomic_path(out_dir / "report.json") as tmp:
-        tmp.write_text(json.dumps(data, indent=1, allow_nan=True))
+        tmp.write_text(json.dumps(_json_safe(data), indent=1, allow_nan=False))
     settings = "\n".join(f"- {k}: {v}" for k, v in info.items())
     text = (f"# Stage-1 evaluation\n\n{settings}\n\n{markdown_table(rows)}\n\n"
-            "Mean ± std over trials (seeds; deterministic rows are evaluated once). ↓ = lower is better; for the other columns the real dances are the "
-            "target, not the maximum. D2M = Dancing2Music kinematic-offset beats, vel-min = local minima of "
+            "Mean ± std over trials (seeds; deterministic rows are evaluated once). ↓ = lower is better; for the "
+            "other columns the real dances are the target, not the maximum. D2M = Dancing2Music kinematic-offset beats, vel-min = local minima of "
             "smoothed joint speed (Bailando); a kinematic beat hits when a music beat is within "
             f"±{info['tolerance_frames']} frames. BAS σ = {metrics.DEFAULT_BAS_SIGMA_SECONDS} s. "
             "Multimodality is over seeds for the same song (– where undefined).\n\n"
@@ -351,16 +377,20 @@ def run_evaluation(data_dir: str | os.PathLike, model_dirs: list[str], out_dir: 
 
     if options.trials < 1 or options.seconds <= 0:
         raise DancesynthError("--trials must be at least 1 and --seconds positive.")
-    out_dir = Path(out_dir)
-    (out_dir / "videos").mkdir(parents=True, exist_ok=True)
     ds = DanceDataset(data_dir)
+    out_dir = Path(out_dir)
+    try:
+        (out_dir / "videos").mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise DancesynthError(f"Could not create the report folder {out_dir} ({e.strerror or e}); "
+                              "choose another --out.") from e
     clf, clf_dir = obtain_classifier(ds, options)
     if list(clf.styles) != list(ds.styles):
         raise DancesynthError(f"The style classifier knows styles {clf.styles} but the dataset has {list(ds.styles)}; "
                               "train one on this dataset with `dancesynth train-style-classifier`.")
     songs = load_songs(ds, options.seconds)
     ref = load_reference(ds, clf)
-    contenders = baseline_contenders(songs, ref) + [model_contender(m, songs, options.device) for m in model_dirs]
+    contenders = baseline_contenders(songs, ref) + [model_contender(m, ds, songs, options.device) for m in model_dirs]
     samples: dict[str, PoseSequence] = {}
 
     def keep_first(row: str, i: int, seed: int, dance: PoseSequence) -> None:

@@ -150,10 +150,12 @@ def fid_over_time(window_features: np.ndarray, reference: np.ndarray) -> np.ndar
     """Long-term FID curve (Dance Revolution Fig. 4): FID of each time window against a reference set.
 
     ``window_features`` ``[N, W, D]``: N dances cut into W consecutive windows (e.g. 4 s each), one
-    embedding per window. Returns ``[W]``: ``FID(window_features[:, w], reference)``. A dance that
-    freezes drifts away from real motion, so its curve rises with w.
+    embedding per window. Returns ``[W]``: ``FID(window_features[:, w], reference)`` (NaN when N < 2: one
+    dance has no covariance). A dance that freezes drifts away from real motion, so its curve rises with w.
     """
     f = np.asarray(window_features, dtype=np.float64)
+    if f.shape[0] < 2:
+        return np.full(f.shape[1], np.nan)
     return np.array([frechet_distance(f[:, w], reference) for w in range(f.shape[1])])
 
 

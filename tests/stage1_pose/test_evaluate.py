@@ -74,6 +74,7 @@ def test_report_files_and_rows(report):
         assert f"| {name} |" in text
     saved = json.loads((out / "report.json").read_text())
     assert [r["name"] for r in saved["rows"]] == [REAL, RANDOM_REAL, FROZEN]
+    assert saved["rows"][0]["multimodality"] is None  # undefined for the real dances, strict JSON null
     # The classifier was trained once and cached under the dataset folder.
     assert (data / "style_classifier" / "small" / "latest.json").is_file()
 
