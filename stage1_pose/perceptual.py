@@ -20,6 +20,7 @@ from stage1_pose.checkpoint import load_checkpoint, save_checkpoint
 from stage1_pose.data.dataset import WindowDataset, collate
 from stage1_pose.device import resolve_device
 from stage1_pose.errors import DancesynthError
+from stage1_pose.methods import config_from_dict
 from stage1_pose.models.stgcn import STGCN, STGCN_PRESETS, STGCNConfig
 from stage1_pose.skeleton import ROOT
 
@@ -65,7 +66,7 @@ def load_stgcn(run_dir: str | os.PathLike, device: torch.device | str = "cpu") -
             "The pose perceptual loss needs a trained ST-GCN: run `dancesynth train-stgcn --data DIR --out RUN` "
             "and give RUN as the ren method's stgcn_run, or train an ablation preset without it (e.g. local_d-small).")
     state, meta = load_checkpoint(run_dir, expected_kind=CHECKPOINT_KIND)
-    net = STGCN(STGCNConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in meta["config"].items()}))
+    net = STGCN(config_from_dict(STGCNConfig, meta["config"]))
     net.load_state_dict(state)
     return net.to(device).eval().requires_grad_(False)
 
