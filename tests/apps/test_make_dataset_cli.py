@@ -19,3 +19,23 @@ def test_make_dataset_command_reports_bad_input(tmp_path, capsys):
     assert main(["make-dataset", "--out", str(tmp_path / "ds"), "--clips", "0"]) == 1
     err = capsys.readouterr().err
     assert "--clips must be at least 1" in err and "Traceback" not in err
+
+
+def test_import_dance_command(tmp_path, capsys):
+    import numpy as np
+    import soundfile
+
+    from stage1_pose.skeleton import COCO17_TO_BODY25
+
+    rng = np.random.default_rng(0)
+    soundfile.write(tmp_path / "song.wav", (0.1 * rng.standard_normal(3 * 22050)).astype(np.float32), 22050)
+    kp = np.ones((180, 25, 3), np.float32)
+    kp[..., :2] = 500 + rng.uniform(-50, 50, (1, 25, 2)) + np.sin(np.arange(180) / 9)[:, None, None] * 30
+    np.save(tmp_path / "gPO_x.npy", kp[:, list(COCO17_TO_BODY25)])
+    out = tmp_path / "ds"
+    assert main(["import-dance", "--out", str(out), "--aistpp", str(tmp_path / "gPO_x.npy"),
+                 "--audio", str(tmp_path / "song.wav"), "--split", "test"]) == 0
+    assert "added clip gPO_x (style pop, split test)" in capsys.readouterr().out
+    assert len(DanceDataset(out).load_poses(DanceDataset(out).clips()[0])) == 45
+    assert main(["import-dance", "--out", str(out), "--openpose", str(tmp_path), "--audio", "x.wav"]) == 1
+    assert "--openpose needs --style, --fps, --width, --height" in capsys.readouterr().err
