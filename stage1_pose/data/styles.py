@@ -30,7 +30,7 @@ class Style:
         moves: names of the moves in :data:`stage1_pose.data.synth_dance.MOVES` this style's dancers use.
         segment_beats: beats per move segment, from which each move instance draws (1, 2 or 4); keyframes
             sit at segment ends, so these are the beats the dance hits.
-        hit_fraction: fraction of a segment spent holding before moving (0 = legato minimum-jerk motion,
+        hit_fraction: fraction of a segment spent holding before moving (0 = legato motion,
             larger = sharper hits that arrive on the beat).
         ramp: seconds a segment takes to speed up from rest and to slow down to rest; in between the joints move
             at constant speed. Short ramps make the sudden stops on beats that kinematic beat detectors find.

@@ -1,9 +1,9 @@
 """Synthetic BODY_25 dances to a known beat grid, by forward kinematics of a 2D body seen from the front.
 
 A dance is a sequence of moves from the style's vocabulary (:data:`MOVES`). A move is a few key poses, one per
-segment of 1, 2 or 4 beats; each key pose is reached exactly on a music beat through a minimum-jerk
-trajectory (after a hold for hit-style moves), so the body decelerates and changes direction on those beats
-and glides through the others. Joint angles and root motion are then turned into pixel positions with
+segment of 1, 2 or 4 beats; each key pose is reached exactly on a music beat by a smooth (C2) trajectory that
+speeds up and slows down within a fraction of a second (after a hold for hit-style moves), so the body stops
+or turns sharply on those beats and glides through the others. Joint angles and root motion are then turned into pixel positions with
 constant bone lengths; the root height keeps the lowest foot point on the floor (or above it in a jump).
 
 Angles are in radians in the image plane. Arm and leg angles are measured from straight down, positive away
@@ -185,9 +185,12 @@ def _segment_profile(u: np.ndarray, seconds: np.ndarray, ramp: float) -> np.ndar
 
 def angle_trajectories(style: Style, times: np.ndarray, poses: np.ndarray, beats: np.ndarray,
                        num_frames: int, fps: float = FPS) -> np.ndarray:
-    """DOF values at each pose frame, ``[num_frames, len(DOFS)]``: minimum-jerk segments between key poses
-    (holding for ``style.hit_fraction`` of a segment first, with ``style.ramp`` second speed ramps), plus the style's knee bounce on every beat and
-    hip sway with direction changes on every beat. Frame ``i`` is at ``i / fps`` seconds."""
+    """DOF values at each pose frame, ``[num_frames, len(DOFS)]``.
+
+    Between key poses: a hold for ``style.hit_fraction`` of the segment, then :func:`_segment_profile` with
+    ``style.ramp`` second speed ramps. On top: the style's knee bounce peaking on every beat and a hip sway
+    whose direction changes on every beat. Frame ``i`` is at ``i / fps`` seconds.
+    """
     t = np.arange(num_frames) / fps
     seg = np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 1)
     nxt = np.minimum(seg + 1, len(times) - 1)
@@ -222,29 +225,29 @@ def forward_kinematics(q: np.ndarray, body: Body, floor_y: float, center_x: floa
     """
     T = len(q)
     d = {name: q[:, i] for i, name in enumerate(DOFS)}
-    zero = np.zeros(T)
+    down = (np.zeros(T), np.ones(T))
     P = np.zeros((T, NUM_JOINTS, 2))
     J = JOINT_INDEX
     lean = d["lean"]
     up = np.stack([np.sin(lean), -np.cos(lean)], -1)
     across = np.stack([np.cos(lean), np.sin(lean)], -1)
+    pelvis_across = np.stack([np.cos(d["pelvis"]), np.sin(d["pelvis"])], -1)
     P[:, J["Neck"]] = body.torso * up
     for side, name in ((-1.0, "R"), (1.0, "L")):
         pre = "r" if side < 0 else "l"
         shoulder = P[:, J["Neck"]] + side * body.shoulder * across
         # arm angles are relative to the torso: turn the (outward, down) direction by the lean as well
-        arm_dir = _rot(zero, np.ones(T), d[f"{pre}_arm"], side)
-        fore_dir = _rot(zero, np.ones(T), d[f"{pre}_arm"] + d[f"{pre}_elbow"], side)
+        arm_dir = _rot(*down, d[f"{pre}_arm"], side)
+        fore_dir = _rot(*down, d[f"{pre}_arm"] + d[f"{pre}_elbow"], side)
         elbow = shoulder + body.upper_arm * _turn(arm_dir, lean)
         P[:, J[f"{name}Shoulder"]] = shoulder
         P[:, J[f"{name}Elbow"]] = elbow
         P[:, J[f"{name}Wrist"]] = elbow + body.forearm * _turn(fore_dir, lean)
-        pelvis = d["pelvis"]
-        hip = side * body.hip * np.stack([np.cos(pelvis), np.sin(pelvis)], -1)
+        hip = side * body.hip * pelvis_across
         thigh = d[f"{pre}_leg"] + d[f"{pre}_knee"] / 2
         shin = d[f"{pre}_leg"] - d[f"{pre}_knee"] / 2
-        knee = hip + body.thigh * _rot(zero, np.ones(T), thigh, side)
-        ankle = knee + body.shin * _rot(zero, np.ones(T), shin, side)
+        knee = hip + body.thigh * _rot(*down, thigh, side)
+        ankle = knee + body.shin * _rot(*down, shin, side)
         foot_turn = shin + 0.4 * d[f"{pre}_foot"]
         P[:, J[f"{name}Hip"]] = hip
         P[:, J[f"{name}Knee"]] = knee
