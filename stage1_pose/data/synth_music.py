@@ -191,9 +191,11 @@ def synthesize_song(style: Style, seconds: float, rng: np.random.Generator) -> S
     for c, start in enumerate(np.arange(first, seconds, chord_len)):
         root_degree = progression[c % len(progression)]
         degrees = root_degree + np.array([0, 2, 4])
-        midis = key + 12 + scale[degrees % 7] + 12 * (degrees // 7)
+        # Chords sit two octaves above the bass, clear of the low band beat trackers follow, where the slow
+        # attacks and detuned beating of a pad would otherwise read as onsets between beats.
+        midis = key + 24 + scale[degrees % 7] + 12 * (degrees // 7)
         chord_beats = beats[(beats >= start - 1e-9) & (beats < start + chord_len - 1e-9)]
-        if style.pad == "bright":  # off-beat stabs, an octave up so they add no low-frequency onsets between beats
+        if style.pad == "bright":  # short stabs on the off-beats, an octave above the chord
             stab = note(("stab", c % len(progression)), lambda: _chord(midis + 12, period * 0.45, style.pad, rng))
             for b in chord_beats:
                 mix.add(b + period / 2, stab)
@@ -209,7 +211,7 @@ def synthesize_song(style: Style, seconds: float, rng: np.random.Generator) -> S
             if rng.random() < 0.2:  # rests make the phrasing vary from song to song
                 continue
             degree = int(np.clip(degree + rng.choice([-2, -1, -1, 0, 1, 1, 2]), 0, 11))
-            midi = key + 24 + scale[degree % 7] + 12 * (degree // 7)
+            midi = key + 36 + scale[degree % 7] + 12 * (degree // 7)
             mix.add(m_start, note(("lead", midi), lambda: _lead(midi, melody_step * 0.95, style.lead)))
 
     y = mix.out
