@@ -259,9 +259,12 @@ def evaluate_contender(contender: Contender, songs: list[Song], ref: Reference, 
             np.stack([[all_scores[t][i].feature for t in range(n_trials)] for i in range(len(songs))]))
     elif contender.name != REAL:
         result.multimodality = 0.0
+    # One curve per trial (one dance per song), then the mean: pooling trials would give stochastic rows more
+    # distinct samples per window than deterministic ones, and FID falls with sample count.
     n_windows = min(s.windows.shape[0] for trial in all_scores for s in trial)
-    curve_input = np.stack([s.windows[:n_windows] for trial in all_scores for s in trial])
-    result.fid_curve = metrics.fid_over_time(curve_input, ref.window_features).tolist()
+    curves = [metrics.fid_over_time(np.stack([s.windows[:n_windows] for s in trial]), ref.window_features)
+              for trial in all_scores]
+    result.fid_curve = np.mean(curves, axis=0).tolist()
     return result
 
 

@@ -19,6 +19,12 @@ def _save(fig: plt.Figure, path: str | os.PathLike) -> None:
     plt.close(fig)
 
 
+def _robust_ylim(ax: plt.Axes, values: np.ndarray) -> None:
+    """Scale the y axis to the 99th percentile, so one start-up transient does not flatten the rest."""
+    top = float(np.percentile(values, 99)) if len(values) else 0.0
+    ax.set_ylim(0.0, 1.15 * top if top > 0 else 1.0)
+
+
 def plot_fid_over_time(curves: dict[str, list[float]], window_seconds: float, path: str | os.PathLike) -> None:
     """Long-term FID (Dance Revolution Fig. 4): one line per row, x = window start in seconds."""
     fig, ax = plt.subplots(figsize=(7, 4))
@@ -46,6 +52,7 @@ def plot_beat_alignment(onset: np.ndarray, music_beats: np.ndarray, fps: float,
     t = np.arange(len(onset)) / fps
     axes[0].plot(t, onset, color="black", lw=0.8)
     axes[0].set_ylabel("onset", fontsize=8)
+    _robust_ylim(axes[0], onset)
     axes[0].set_title(title, fontsize=9)
     for ax, (name, (offsets, d2m, vmin)) in zip(axes[1:], dances.items()):
         n = min(len(offsets), len(t))
@@ -55,6 +62,7 @@ def plot_beat_alignment(onset: np.ndarray, music_beats: np.ndarray, fps: float,
         ax.plot(d2m / fps, offsets[d2m], "v", color="tab:red", ms=5, label="D2M kinematic beat")
         ax.plot(vmin / fps, np.zeros(len(vmin)), "|", color="tab:green", ms=10, mew=2, label="velocity minimum")
         ax.set_ylabel(name, fontsize=8, rotation=0, ha="right")
+        _robust_ylim(ax, offsets[:n])
     for ax in axes:
         for b in music_beats:
             ax.axvline(b, color="grey", ls="--", lw=0.6)
