@@ -110,9 +110,9 @@ def predicted_inputs(frames: int, p: int, q: int) -> list[bool]:
     return [i >= 1 and (i - 1) % (p + q) < p for i in range(frames)]
 
 
-def sinusoidal_encoding(n: int, dim: int, device: torch.device | None = None) -> torch.Tensor:
-    """``[n, dim]`` sinusoidal positional encoding (Vaswani et al.), built for any length n."""
-    pos = torch.arange(n, dtype=torch.float32, device=device)[:, None]
+def sinusoidal_encoding(n: int, dim: int, device: torch.device | None = None, start: int = 0) -> torch.Tensor:
+    """``[n, dim]`` sinusoidal positional encoding (Vaswani et al.) of positions ``start .. start+n-1``."""
+    pos = torch.arange(start, start + n, dtype=torch.float32, device=device)[:, None]
     freq = torch.exp(torch.arange(0, dim, 2, dtype=torch.float32, device=device) * (-math.log(10000.0) / dim))
     out = torch.zeros(n, dim, device=device)
     out[:, 0::2] = torch.sin(pos * freq)
@@ -144,12 +144,25 @@ class MusicEncoder(nn.Module):
         self.drop = nn.Dropout(cfg.dropout)
         self.layers = nn.ModuleList(EncoderLayer(cfg) for _ in range(cfg.layers))
 
-    def forward(self, audio: torch.Tensor) -> torch.Tensor:
+    def forward(self, audio: torch.Tensor, start: int = 0) -> torch.Tensor:
+        """``start``: the frame index of ``audio[:, 0]`` in the song (for the positional encoding)."""
         x = self.embed(audio)
-        x = self.drop(x + sinusoidal_encoding(x.shape[1], x.shape[2], x.device))
+        x = self.drop(x + sinusoidal_encoding(x.shape[1], x.shape[2], x.device, start))
         for layer in self.layers:
             x = layer(x)
         return x
+
+    def encode_chunked(self, audio: torch.Tensor, chunk: int = 900) -> torch.Tensor:
+        """Same result as :meth:`forward` (eval mode) with memory bounded by ``chunk`` frames whatever the song
+        length: each chunk is encoded with the ``layers x window // 2`` frames of context either side that
+        its outputs can see, and only its own frames are kept."""
+        halo = len(self.layers) * (self.layers[0].attention.window // 2) if self.layers else 0
+        frames = audio.shape[1]
+        parts = []
+        for s in range(0, frames, chunk):
+            lo, hi = max(0, s - halo), min(frames, s + chunk + halo)
+            parts.append(self(audio[:, lo:hi], start=lo)[:, s - lo: s - lo + min(chunk, frames - s)])
+        return torch.cat(parts, dim=1)
 
 
 def _quantize_rows(w_ih: torch.Tensor, w_hh: torch.Tensor, rows: int = 256) -> tuple[torch.Tensor, torch.Tensor]:
@@ -315,7 +328,7 @@ class DanceRevolution(Stage1Method):
     @torch.no_grad()
     def generate(self, audio: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
         """``[B, T, feature_dim]`` -> ``[B, T, 25, 2]`` for any T; the initial LSTM state comes from ``generator``."""
-        z = self.encoder(audio)
+        z = self.encoder.encode_chunked(audio)
         state = self.decoder.initial_state(audio.shape[0], audio.device, generator)
         stepper = self._stepper if audio.device.type == "cpu" else None
         return self.decoder.generate(z, state, stepper).reshape(audio.shape[0], audio.shape[1], NUM_JOINTS, 2)

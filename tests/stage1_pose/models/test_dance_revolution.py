@@ -1,3 +1,5 @@
+import dataclasses
+
 import pytest
 import torch
 
@@ -32,6 +34,15 @@ def test_positional_encoding_any_length():
     pe = sinusoidal_encoding(9001, 16)
     assert pe.shape == (9001, 16) and torch.isfinite(pe).all()
     torch.testing.assert_close(pe[:5], sinusoidal_encoding(5, 16))
+
+
+def test_chunked_encoding_equals_whole_sequence_encoding():
+    encoder = DanceRevolution(dataclasses.replace(TINY, layers=2)).encoder.eval()
+    audio = torch.randn(1, 101, 12)
+    with torch.no_grad():
+        whole = encoder(audio)
+        for chunk in (10, 33, 101, 500):
+            torch.testing.assert_close(encoder.encode_chunked(audio, chunk), whole, rtol=1e-5, atol=1e-5)
 
 
 def test_generate_shapes_seeds_and_length():
