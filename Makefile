@@ -20,10 +20,10 @@ $(STAMP): pyproject.toml
 	touch $@
 
 demo: $(STAMP)
-	$(VENV)/bin/dancesynth demo --out demo_output
+	OMP_NUM_THREADS=1 $(VENV)/bin/dancesynth demo --out demo_output
 
 test: $(STAMP)
-	$(PY) -m pytest -q
+	OMP_NUM_THREADS=1 $(PY) -m pytest -q
 
 clean:
 	rm -rf $(VENV) demo_output
