@@ -37,7 +37,7 @@ POSE_METHOD = "dance_revolution"
 class DemoPlan:
     """Sizes and time shares of the demo; shares are fractions of the total minutes."""
 
-    clips: int = 60
+    clips: int = 40
     clip_seconds: float = 60.0
     pose_share: float = 0.35
     video_share: float = 0.4
@@ -133,14 +133,14 @@ def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, d
                     device=device).written
     step("dance for a held-out song")
 
-    written.append(_summary(out, dataset, clip, pose_run, video_run, timings, seed, device))
+    written.append(_summary(out, dataset, clip, pose_run, video_run, timings, seed, device, plan.dance_seconds))
     return written
 
 
 def _summary(out: Path, dataset: DanceDataset, clip, pose_run: Path, video_run: Path,
-             timings: dict[str, float], seed: int, device: str) -> Path:
+             timings: dict[str, float], seed: int, device: str, seconds: float) -> Path:
     beats = np.array(json.loads((dataset.root / clip.beats).read_text())["beats"])
-    samples = load_song(dataset.root / clip.audio, SONG_SR)[: int(20 * SONG_SR)]
+    samples = load_song(dataset.root / clip.audio, SONG_SR)[: int(seconds * SONG_SR)]
     model = load_pose_model(pose_run, device)
     generated = generate_dance(model, samples, SONG_SR, seed=seed)
     real = dataset.load_poses(clip).slice_frames(0, len(generated))
@@ -149,7 +149,7 @@ def _summary(out: Path, dataset: DanceDataset, clip, pose_run: Path, video_run: 
     val = _last_row(video_run / "validation.csv") if (video_run / "validation.csv").is_file() else {}
     lines = [
         "# dancesynth demo", "",
-        f"Held-out song `{clip.id}` (style {clip.style}), first 20 s, seed {seed}, device {device}.", "",
+        f"Held-out song `{clip.id}` (style {clip.style}), first {seconds:g} s, seed {seed}, device {device}.", "",
         "Files: [dance.mp4](dance.mp4) · [skeleton.mp4](skeleton.mp4) · [side_by_side.mp4](side_by_side.mp4) · "
         "[target video](target/target.mp4)", "",
         "![skeleton | generated person](frames.png)", "",
