@@ -9,6 +9,8 @@ seconds) and the analysis frame nearest to each pose frame's time is taken. At 1
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator
+
 import numpy as np
 
 from stage1_pose.errors import DancesynthError
@@ -34,6 +36,13 @@ _TEMPO_PRIOR_OCTAVES = 1.5
 # Spectral analysis pads songs shorter than this with silence: the constant-Q transform's lowest octave needs
 # about 3 s of signal. Only rows up to the song's own length are kept.
 _MIN_ANALYSIS_SECONDS = 4.0
+# Spectral analyses run over blocks of this many frames (with margins), so memory stays flat for any song length.
+_BLOCK_FRAMES = 2048
+_N_FFT = 2048
+_DR_TEMPOGRAM_WINDOW = 384
+# Signal a constant-Q block needs beyond its own frames: half the longest (C1, 32.7 Hz) filter at 15360 Hz is
+# about 4000 samples; the rest covers the octave-by-octave resampling filters.
+_CQT_MARGIN_SAMPLES = 16384
 
 
 def num_pose_frames(num_samples: int, sr: int, fps: float) -> int:
@@ -94,15 +103,89 @@ def _frames_to_one_hot(times: np.ndarray, num_frames: int, fps: float) -> np.nda
     return out
 
 
+def _blocks(y: np.ndarray, hop: int, margin: int, frames: int | None = None) -> Iterator[tuple[np.ndarray, slice]]:
+    """Split a centred frame analysis of ``y`` (``frames`` frames, by default ``1 + len(y) // hop``) into blocks of
+    ``_BLOCK_FRAMES`` frames: yields each block's signal, with ``margin`` extra frames of signal on either side, and
+    the slice of the block analysis's frames that belong to the block.
+
+    With ``margin * hop`` at least half the analysis window, every kept frame sees the same samples as in one
+    whole-song analysis, so memory does not grow with the song's length.
+    """
+    total = 1 + len(y) // hop if frames is None else frames
+    for start in range(0, total, _BLOCK_FRAMES):
+        stop = min(total, start + _BLOCK_FRAMES)
+        lo = max(0, start - margin)
+        yield y[lo * hop:(stop + margin) * hop], slice(start - lo, stop - lo)
+
+
+def _blockwise(y: np.ndarray, hop: int, margin: int, analyse: Callable[[np.ndarray], np.ndarray],
+               frames: int | None = None) -> np.ndarray:
+    """``analyse`` (a centred frame analysis ``[N] -> [..., frames]``) of the whole of ``y``, computed over
+    :func:`_blocks` and concatenated along the last (frame) axis."""
+    return np.concatenate([analyse(block)[..., keep] for block, keep in _blocks(y, hop, margin, frames)], axis=-1)
+
+
+def _log_mel(y: np.ndarray, sr: int, hop: int, n_mels: int = 128, fmax: float | None = None) -> np.ndarray:
+    """``[n_mels, 1 + len(y) // hop]`` log-power mel spectrogram (dB, 2048-sample window), as librosa's
+    ``power_to_db(melspectrogram(y))`` but computed block by block."""
+    import librosa
+
+    margin = -(-_N_FFT // (2 * hop))
+    mel = _blockwise(y, hop, margin, lambda block: librosa.feature.melspectrogram(
+        y=block, sr=sr, n_fft=_N_FFT, hop_length=hop, n_mels=n_mels, fmax=fmax))
+    return librosa.power_to_db(mel)
+
+
+def _onset_envelope(log_mel: np.ndarray, sr: int, hop: int) -> np.ndarray:
+    """librosa's spectral-flux onset strength ``[frames]`` of a :func:`_log_mel` spectrogram."""
+    import librosa
+
+    return librosa.onset.onset_strength(S=log_mel, sr=sr, hop_length=hop, n_fft=_N_FFT)
+
+
+def _tuning(y: np.ndarray, sr: int, bins_per_octave: int) -> float:
+    """librosa's ``estimate_tuning(y, sr, bins_per_octave=...)`` (fraction of a bin), with its pitch tracking done
+    block by block.
+
+    Only each block's voiced spectral peaks (pitch > 0) are kept: the median threshold over them is the one
+    song-wide step.
+    """
+    import librosa
+
+    hop = _N_FFT // 4
+    pitches, mags = [], []
+    for block, keep in _blocks(y, hop, 2):
+        pitch, mag = librosa.piptrack(y=block, sr=sr, n_fft=_N_FFT, hop_length=hop)
+        voiced = pitch[:, keep] > 0
+        pitches.append(pitch[:, keep][voiced])
+        mags.append(mag[:, keep][voiced])
+    pitch, mag = np.concatenate(pitches), np.concatenate(mags)
+    threshold = np.median(mag) if len(mag) else 0.0
+    return float(librosa.pitch_tuning(pitch[mag >= threshold], resolution=0.01, bins_per_octave=bins_per_octave))
+
+
+def _chroma(y: np.ndarray, sr: int, hop: int) -> np.ndarray:
+    """``[12, 1 + len(y) // hop]`` librosa ``chroma_cqt``, block by block with the song's own tuning."""
+    import librosa
+
+    # chroma_cqt analyses 36 bins per octave and estimates the tuning at that resolution.
+    tuning = _tuning(y, sr, bins_per_octave=36)
+    margin = -(-_CQT_MARGIN_SAMPLES // hop)
+    return _blockwise(y, hop, margin, lambda block: librosa.feature.chroma_cqt(
+        y=block, sr=sr, hop_length=hop, n_chroma=12, tuning=tuning))
+
+
 def _dance_revolution(y: np.ndarray, num_frames: int, fps: float, beats: np.ndarray) -> np.ndarray:
     import librosa
 
     hop = analysis_hop(fps)
-    mfcc = librosa.feature.mfcc(y=y, sr=ANALYSIS_SR, n_mfcc=20, hop_length=hop)
+    log_mel = _log_mel(y, ANALYSIS_SR, hop)
+    mfcc = librosa.feature.mfcc(S=log_mel, n_mfcc=20)
     mfcc_delta = librosa.feature.delta(mfcc, mode="nearest")
-    chroma = librosa.feature.chroma_cqt(y=y, sr=ANALYSIS_SR, hop_length=hop, n_chroma=12)
-    onset = librosa.onset.onset_strength(y=y, sr=ANALYSIS_SR, hop_length=hop)
-    tempogram = librosa.feature.tempogram(onset_envelope=onset, sr=ANALYSIS_SR, hop_length=hop, win_length=384)
+    chroma = _chroma(y, ANALYSIS_SR, hop)
+    onset = _onset_envelope(log_mel, ANALYSIS_SR, hop)
+    tempogram = _blockwise(onset, 1, _DR_TEMPOGRAM_WINDOW // 2 + 1, lambda block: librosa.feature.tempogram(
+        onset_envelope=block, sr=ANALYSIS_SR, hop_length=hop, win_length=_DR_TEMPOGRAM_WINDOW), frames=len(onset))
     available = min(m.shape[-1] for m in (mfcc, chroma, onset[None], tempogram))
     rows = _pose_rows(num_frames, fps, hop, available)
     # Beats are placed on the nearest pose frame rather than subsampled, so none is lost between kept frames.
@@ -115,8 +198,9 @@ def _dancing2music(y: np.ndarray, num_frames: int, fps: float) -> np.ndarray:
     import librosa
 
     hop = analysis_hop(fps)
-    mfcc = librosa.feature.mfcc(y=y, sr=ANALYSIS_SR, n_mfcc=13, hop_length=hop)
-    rms = librosa.feature.rms(y=y, hop_length=hop)
+    mfcc = librosa.feature.mfcc(S=_log_mel(y, ANALYSIS_SR, hop), n_mfcc=13)
+    rms = _blockwise(y, hop, -(-_N_FFT // (2 * hop)), lambda block: librosa.feature.rms(
+        y=block, frame_length=_N_FFT, hop_length=hop))
     stacked = np.concatenate([mfcc, rms])
     delta = librosa.feature.delta(stacked, mode="nearest")
     rows = _pose_rows(num_frames, fps, hop, stacked.shape[-1])
@@ -161,28 +245,26 @@ def extract_features(samples: np.ndarray, sr: int, kind: str, fps: float = 15.0)
 
 def _low_onset(samples: np.ndarray, sr: int) -> np.ndarray:
     """Onset strength of the bands under 150 Hz at ``_BEAT_SR`` / ``_BEAT_HOP`` frames per second."""
-    import librosa
-
     y = _resample(samples, sr, _BEAT_SR)
-    return librosa.onset.onset_strength(y=y, sr=_BEAT_SR, hop_length=_BEAT_HOP, n_fft=2048,
-                                        fmax=_BEAT_FMAX, n_mels=_BEAT_MELS)
+    return _onset_envelope(_log_mel(y, _BEAT_SR, _BEAT_HOP, _BEAT_MELS, _BEAT_FMAX), _BEAT_SR, _BEAT_HOP)
 
 
 def _mean_tempogram(onset: np.ndarray) -> np.ndarray:
     """``[win, 1]`` time-averaged autocorrelation tempogram of an onset envelope, computed in chunks.
 
     librosa's tempo estimate averages a ``[win, frames]`` tempogram; at this fine hop a whole song's tempogram
-    takes gigabytes, so it is accumulated chunk by chunk (chunks overlap by one window, and each frame is counted
-    once), keeping memory flat for any song length.
+    takes gigabytes, so it is accumulated chunk by chunk (each chunk sees half a window of onsets beyond its
+    edges, and each frame is counted once), keeping memory flat for any song length.
     """
     import librosa
 
     win = int(round(_TEMPO_WINDOW_SECONDS * _BEAT_SR / _BEAT_HOP))
-    chunk = 4 * win
+    # A tempogram frame sees half a window either side; 512-frame chunks keep each FFT batch near 50 MB.
+    chunk, margin = 512, win // 2 + 1
     total, count = np.zeros(win), 0
     for start in range(0, len(onset), chunk):
-        lo = max(0, start - win)
-        tg = librosa.feature.tempogram(onset_envelope=onset[lo:start + chunk + win], sr=_BEAT_SR,
+        lo = max(0, start - margin)
+        tg = librosa.feature.tempogram(onset_envelope=onset[lo:start + chunk + margin], sr=_BEAT_SR,
                                        hop_length=_BEAT_HOP, win_length=win)
         keep = tg[:, start - lo:start - lo + min(chunk, len(onset) - start)]
         total += keep.sum(axis=1)
@@ -220,12 +302,10 @@ def onset_strength(samples: np.ndarray, sr: int, fps: float) -> np.ndarray:
     Each pose frame ``i`` takes the strongest onset within half a pose frame of its time ``i / fps``, so short
     onsets between frames are not lost.
     """
-    import librosa
-
     num_frames = num_pose_frames(len(samples), sr, fps)
     y = _resample(samples, sr, ANALYSIS_SR)
     hop = _CQT_HOP_MULTIPLE * 2  # 8.3 ms: finer than any pose frame rate in use
-    onset = librosa.onset.onset_strength(y=y, sr=ANALYSIS_SR, hop_length=hop)
+    onset = _onset_envelope(_log_mel(y, ANALYSIS_SR, hop), ANALYSIS_SR, hop)
     frame_of = np.round(np.arange(len(onset)) * hop / ANALYSIS_SR * fps).astype(np.int64)
     out = np.zeros(num_frames, np.float32)
     keep = frame_of < num_frames

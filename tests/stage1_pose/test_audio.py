@@ -114,3 +114,24 @@ def test_beat_f_measure():
     assert audio.beat_f_measure(ref + 0.1, ref) == 0.0
     assert audio.beat_f_measure([1.0, 1.01, 2.0], ref) == pytest.approx(2 * (2 / 3 * 0.5) / (2 / 3 + 0.5))
     assert audio.beat_f_measure([], ref) == 0.0
+
+
+def test_blockwise_analysis_equals_whole_song_analysis(monkeypatch):
+    """Features are computed block by block (flat memory for any song length) yet match librosa's whole-song
+    transforms."""
+    import librosa
+
+    sr, hop = audio.ANALYSIS_SR, 512
+    rng = np.random.default_rng(0)
+    t = np.arange(12 * sr) / sr
+    y = (0.3 * np.sin(2 * np.pi * 443 * t) * (1 + np.sin(t)) + 0.05 * rng.standard_normal(len(t))).astype(np.float32)
+    monkeypatch.setattr(audio, "_BLOCK_FRAMES", 64)  # 12 s = 361 frames: six blocks
+    log_mel = audio._log_mel(y, sr, hop)
+    np.testing.assert_allclose(log_mel, librosa.power_to_db(librosa.feature.melspectrogram(y=y, sr=sr, hop_length=hop)),
+                               atol=1e-3)
+    np.testing.assert_allclose(audio._onset_envelope(log_mel, sr, hop),
+                               librosa.onset.onset_strength(y=y, sr=sr, hop_length=hop), atol=1e-3)
+    assert audio._tuning(y, sr, 36) == pytest.approx(librosa.estimate_tuning(y=y, sr=sr, bins_per_octave=36))
+    chroma = audio._chroma(y, sr, hop)
+    reference = librosa.feature.chroma_cqt(y=y, sr=sr, hop_length=hop)
+    np.testing.assert_allclose(chroma, reference, atol=1e-3)
