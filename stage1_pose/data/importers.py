@@ -41,13 +41,9 @@ AIST_FPS, AIST_WIDTH, AIST_HEIGHT = 60.0, 1920, 1080
 _ID_CHARS = re.compile(r"[^A-Za-z0-9_.-]+")
 
 
-def _song_id(samples: np.ndarray) -> str:
-    return "song_" + hashlib.sha1(np.ascontiguousarray(samples, np.float32).tobytes()).hexdigest()[:12]
-
-
 def add_clip(out_dir: str | os.PathLike, poses: PoseSequence, song_path: str | os.PathLike, style: str,
              clip_id: str, split: str | None = None) -> Clip:
-    """Append a (dance, song) pair to the dataset folder ``out_dir`` (created if needed) and return its clip.
+    """Append a (dance, song file) pair to the dataset folder ``out_dir`` (created if needed) and return its clip.
 
     Args:
         poses: the dance, at any fps (resampled to the dataset's).
@@ -59,10 +55,20 @@ def add_clip(out_dir: str | os.PathLike, poses: PoseSequence, song_path: str | o
     """
     from stage1_pose.media import load_song
 
+    _check_split(split)
+    return add_clip_samples(out_dir, poses, load_song(song_path, SAMPLE_RATE), style, clip_id, split)
+
+
+def add_clip_samples(out_dir: str | os.PathLike, poses: PoseSequence, samples: np.ndarray, style: str,
+                     clip_id: str, split: str | None = None, song: str | None = None) -> Clip:
+    """:func:`add_clip` for a song already decoded: mono ``[N]`` float samples at the dataset's 22050 Hz.
+
+    Args:
+        song: the song's id (clips with one id share a split); default: a hash of ``samples``.
+    """
     root = Path(out_dir)
     clip_id = _ID_CHARS.sub("_", clip_id)
-    if split is not None and split not in SPLITS:
-        raise DancesynthError(f"Unknown split {split!r}; choose one of {', '.join(SPLITS)}.")
+    _check_split(split)
     if (root / MANIFEST).exists():
         manifest = read_manifest(root)
         if manifest.fps != FPS or manifest.sample_rate != SAMPLE_RATE:
@@ -74,15 +80,14 @@ def add_clip(out_dir: str | os.PathLike, poses: PoseSequence, song_path: str | o
         styles, clips = [], []
     if any(c.id == clip_id for c in clips):
         raise DancesynthError(f"{root} already has a clip {clip_id!r}; choose another clip id.")
-    samples = load_song(song_path, SAMPLE_RATE)
     poses = resample(poses, FPS) if poses.fps != FPS else poses
     frames = min(len(poses), num_pose_frames(len(samples), SAMPLE_RATE, FPS))
     if frames < FPS:
-        raise DancesynthError(f"The dance and its song {song_path} overlap for less than a second; "
+        raise DancesynthError(f"The dance {clip_id!r} and its song overlap for less than a second; "
                               "check that they belong together.")
     poses = poses.slice_frames(0, frames)
     samples = samples[:int(round(frames / FPS * SAMPLE_RATE))]
-    song = _song_id(samples)
+    song = song or song_id(samples)
     same_song = [c.split for c in clips if c.song == song]
     split = split or (same_song[0] if same_song else split_for_new_song(song))
     paths = clip_paths(clip_id)
@@ -95,6 +100,16 @@ def add_clip(out_dir: str | os.PathLike, poses: PoseSequence, song_path: str | o
     clip = Clip(id=clip_id, song=song, style=style, split=split, **paths)
     write_manifest(root, FPS, SAMPLE_RATE, styles + ([style] if style not in styles else []), clips + [clip])
     return clip
+
+
+def _check_split(split: str | None) -> None:
+    if split is not None and split not in SPLITS:
+        raise DancesynthError(f"Unknown split {split!r}; choose one of {', '.join(SPLITS)}.")
+
+
+def song_id(samples: np.ndarray) -> str:
+    """A song's id in a dataset: a hash of its samples."""
+    return "song_" + hashlib.sha1(np.ascontiguousarray(samples, np.float32).tobytes()).hexdigest()[:12]
 
 
 def import_openpose(json_folder: str | os.PathLike, audio_path: str | os.PathLike, out_dir: str | os.PathLike,
