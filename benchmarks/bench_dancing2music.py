@@ -9,9 +9,9 @@ compares them with the real dances:
   (kinematic beats per music beat), Lee et al. 2019 Sec. 4, with the music beats tracked on the audio
   (:func:`stage1_pose.audio.beat_times`) for real and generated dances alike.
 
-Each run is measured twice: through :func:`stage1_pose.generate.generate_dance` as users get it (which hands the
-model only the features, so it tracks beats on their loudness channel) and with the song's tracked beats passed
-to the model (``beat_frames``).
+Each run is measured twice: through :func:`stage1_pose.generate.generate_dance` as users get it (the song's
+tracked beats go to the model's beat warper) and with the features alone (the model then finds beats on their
+loudness channel).
 
 Usage: python benchmarks/bench_dancing2music.py --data DATA_DIR --model RUN_DIR [--model RUN_DIR2 ...]
        [--seconds 60] [--seeds 3] [--device auto]
@@ -20,14 +20,13 @@ Usage: python benchmarks/bench_dancing2music.py --data DATA_DIR --model RUN_DIR 
 from __future__ import annotations
 
 import argparse
-import functools
 from pathlib import Path
 
 import numpy as np
 
 from stage1_pose import audio
 from stage1_pose.data.dataset import DanceDataset
-from stage1_pose.generate import generate_dance, load_pose_model
+from stage1_pose.generate import generate_dance, generate_from_features, load_pose_model
 from stage1_pose.kinematic_beats import kinematic_beats
 from stage1_pose.metrics import beat_hit_rate
 from stage1_pose.models.dancing2music import absolute_positions
@@ -71,15 +70,13 @@ def main() -> None:
     rows = [("real (test)", [s[1] for s in songs], [s[3] for s in songs])]
     for run in args.model:
         model = load_pose_model(run, args.device)
-        plain_generate = model.method.generate
         for label, tracked in (("feature beats", False), ("tracked beats", True)):
             dances, beats = [], []
             for _, _, samples, music in songs:
-                # Passing the beats through generate_dance's call of method.generate, the only place they can go.
-                model.method.generate = (functools.partial(plain_generate, beat_frames=[music * model.fps])
-                                         if tracked else plain_generate)
+                features = audio.extract_features(samples, ds.sample_rate, model.feature_kind, model.fps)
                 for seed in range(args.seeds):
-                    dances.append(generate_dance(model, samples, ds.sample_rate, seed=seed))
+                    dances.append(generate_dance(model, samples, ds.sample_rate, seed=seed) if tracked
+                                  else generate_from_features(model, features, seed=seed))
                     beats.append(music)
             rows.append((f"{Path(run).name} {label}", dances, beats))
 

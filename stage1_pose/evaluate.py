@@ -182,7 +182,8 @@ def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[So
     """A row generating with the stage-1 model saved in ``run_dir``.
 
     When the model runs at the dataset's frame rate, its input features come from the dataset's feature cache
-    (computed once per song, cut to the song's frames) instead of being extracted again for every seed.
+    (computed once per song, cut to the song's frames) instead of being extracted again for every seed, and
+    methods that follow beats get the dataset's beats of the song.
     """
     from stage1_pose.generate import generate_dance, generate_from_features, load_pose_model
 
@@ -194,7 +195,7 @@ def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[So
         song = songs[i]
         if cached:
             features = np.asarray(ds.load_features(clips[song.id], model.feature_kind)[: len(song.real)])
-            dance = generate_from_features(model, features, seed=seed)
+            dance = generate_from_features(model, features, seed=seed, beat_frames=song.beats * model.fps)
         else:
             # Beat and window metrics count frames, so every row is judged at the dataset's frame rate.
             dance = resample(generate_dance(model, song.samples, song.sr, seed=seed), song.real.fps)

@@ -70,10 +70,13 @@ def load_pose_model(run_dir: str | os.PathLike, device: str = "auto", precision:
     return LoadedPoseModel(method, meta, dev)
 
 
-def generate_from_features(model: LoadedPoseModel, features: np.ndarray, seed: int = 0) -> PoseSequence:
+def generate_from_features(model: LoadedPoseModel, features: np.ndarray, seed: int = 0,
+                           beat_frames: np.ndarray | None = None) -> PoseSequence:
     """``[T, D]`` raw (unstandardised) features of ``model.feature_kind`` -> a T-frame dance in pixels.
 
     The same ``seed`` gives the same dance; stochastic methods give another dance for another seed.
+    ``beat_frames``: the song's tracked beats in fractional pose frames (seconds x fps), handed to methods that
+    align their dance to beats (``uses_beats``); without them such a method finds beats in the features.
     """
     stats = model.meta["feature_stats"]
     mean, std = np.asarray(stats["mean"], np.float32), np.asarray(stats["std"], np.float32)
@@ -82,13 +85,16 @@ def generate_from_features(model: LoadedPoseModel, features: np.ndarray, seed: i
                               f"{model.feature_kind} columns; extract them with the same feature kind.")
     x = torch.from_numpy((np.asarray(features, np.float32) - mean) / std)[None].to(model.device)
     model.method.eval()
+    extra = {"beat_frames": [beat_frames]} if beat_frames is not None and model.method.uses_beats else {}
     with torch.no_grad():
-        poses = model.method.generate(x, torch.Generator().manual_seed(int(seed)))
+        poses = model.method.generate(x, torch.Generator().manual_seed(int(seed)), **extra)
     return denormalize(poses[0].float().cpu().numpy(), model.norm_params())
 
 
 def generate_dance(model: LoadedPoseModel, samples: np.ndarray, sr: int, seed: int = 0) -> PoseSequence:
     """Mono ``samples`` at ``sr`` Hz -> a dance of ``audio.num_pose_frames(len(samples), sr, fps)`` frames at
     the model's fps, in pixels of the training canvas (confidence 1)."""
-    features = audio.extract_features(np.asarray(samples, np.float32), sr, model.feature_kind, model.fps)
-    return generate_from_features(model, features, seed)
+    samples = np.asarray(samples, np.float32)
+    features = audio.extract_features(samples, sr, model.feature_kind, model.fps)
+    beats = audio.beat_times(samples, sr) * model.fps if model.method.uses_beats else None
+    return generate_from_features(model, features, seed, beats)

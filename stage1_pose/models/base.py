@@ -40,6 +40,9 @@ class Stage1Method(nn.Module, abc.ABC):
 
     method_name: ClassVar[str]
     feature_kind: ClassVar[str]
+    # Methods that align their dance to the song's beats take ``beat_frames`` in :meth:`generate`: one array
+    # per song of beat positions in fractional pose frames (seconds x fps), from the beat tracker.
+    uses_beats: ClassVar[bool] = False
 
     def __init__(self, config: Any) -> None:
         super().__init__()

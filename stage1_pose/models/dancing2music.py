@@ -297,6 +297,7 @@ class Dancing2MusicMethod(Stage1Method):
 
     method_name = "dancing2music"
     feature_kind = "dancing2music"
+    uses_beats = True
 
     def __init__(self, config: Dancing2MusicConfig) -> None:
         super().__init__(config)

@@ -49,3 +49,30 @@ def test_a_stage2_run_is_refused_with_a_hint(tmp_path):
         load_pose_model(tmp_path)
     with pytest.raises(DancesynthError, match="precision"):
         load_pose_model(tmp_path, precision="int4")
+
+
+def test_beat_following_methods_get_the_songs_tracked_beats():
+    """Dancing2Music warps its units onto the song's beats: generate_dance must hand it the tracked beats."""
+    from dataclasses import replace
+
+    from stage1_pose.generate import LoadedPoseModel, generate_dance
+    from stage1_pose.models.dancing2music import DANCING2MUSIC_PRESETS, Dancing2MusicMethod
+
+    sr, seconds = 22050, 8.0
+    song = np.zeros(int(seconds * sr), np.float32)
+    for beat in np.arange(0, seconds, 0.5):  # 120 BPM kicks
+        k = int(beat * sr)
+        song[k:k + 2000] += np.sin(2 * np.pi * 60 * np.arange(2000) / sr) * np.exp(-np.arange(2000) / 400)
+    method = Dancing2MusicMethod(replace(DANCING2MUSIC_PRESETS["small"], gru_hidden=16, mlp_hidden=16, z_mov=4,
+                                         z_dan=4, noise_dim=2)).eval()
+    received = []
+    plain = method.generate
+    method.generate = lambda audio, generator=None, **kwargs: received.append(kwargs) or plain(audio, generator,
+                                                                                                 **kwargs)
+    meta = {"fps": 15.0, "feature_kind": "dancing2music", "canvas": [1280, 720], "body_scale": 100.0,
+            "feature_stats": {"mean": [0.0] * 28, "std": [1.0] * 28}}
+    dance = generate_dance(LoadedPoseModel(method, meta, torch.device("cpu")), song, sr)
+    assert len(dance) == 120
+    beats = received[0]["beat_frames"][0]
+    true_frames = np.arange(0, seconds, 0.5) * 15
+    assert np.abs(beats[:, None] - true_frames[None]).min(axis=1).max() < 1.0 and len(beats) >= 14
