@@ -193,12 +193,7 @@ class Trainer:
         row = {"epoch": self.epoch, "step": self.step, "seconds": round(seconds, 3),
                **{k: v / max(self.count, 1) for k, v in sorted(self.sums.items())}}
         path = self.run_dir / "metrics.csv"
-        new = not path.is_file()
-        with open(path, "a", newline="") as f:
-            writer = csv.DictWriter(f, fieldnames=list(row), extrasaction="ignore")
-            if new:
-                writer.writeheader()
-            writer.writerow(row)
+        _append_metrics(path, row)
         if self.tensorboard is not None:
             for k, v in row.items():
                 if k not in ("epoch", "step"):
@@ -266,6 +261,27 @@ class Trainer:
         if self.tensorboard is not None:
             self.tensorboard.close()
         return self.meta()
+
+
+def _append_metrics(csv_path: Path, row: dict[str, Any]) -> None:
+    """Append ``row`` to ``metrics.csv``. A row with new columns (a method's second training phase logs other
+    losses) rewrites the file with the union of columns, leaving them empty in earlier rows."""
+    fields: list[str] = []
+    rows: list[dict[str, str]] = []
+    if csv_path.is_file():
+        with open(csv_path, newline="") as f:
+            reader = csv.DictReader(f)
+            fields = list(reader.fieldnames or [])
+            if set(row) <= set(fields):
+                with open(csv_path, "a", newline="") as out:
+                    csv.DictWriter(out, fieldnames=fields, restval="").writerow(row)
+                return
+            rows = list(reader)
+    fields += [k for k in row if k not in fields]
+    with atomic_path(csv_path) as tmp, open(tmp, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=fields, restval="")
+        writer.writeheader()
+        writer.writerows([*rows, row])
 
 
 def _drop_rows_from(csv_path: Path, epoch: int) -> None:

@@ -47,6 +47,22 @@ def test_run_folder_outputs(tiny_stage1_dataset, tmp_path):
         train("lstm", tiny_stage1_dataset, tmp_path / "other", overrides={"hiden": 3})
 
 
+def test_metrics_columns_of_a_later_training_phase_are_labelled(tiny_stage1_dataset, tmp_path):
+    """Dancing2Music logs other losses in its composition phase: metrics.csv grows the columns, never shifts them."""
+    import csv
+
+    tiny = dict(gru_hidden=16, mlp_hidden=16, z_mov=4, z_dan=4, noise_dim=2, epochs=2, decomp_epochs=1,
+                batch_size=4, window_frames=60)
+    train("dancing2music", tiny_stage1_dataset, tmp_path / "run", overrides=tiny,
+          options=TrainerConfig(preview_every=0))
+    with open(tmp_path / "run" / "metrics.csv", newline="") as f:
+        first, second = list(csv.DictReader(f))
+    phase1 = {k for k, v in first.items() if v}
+    phase2 = {k for k, v in second.items() if v}
+    assert {"epoch", "step"} <= phase1 & phase2 and phase2 - phase1 and phase1 - phase2
+    assert all(float(v) == float(v) for v in second.values() if v)  # every logged value is a number
+
+
 KILLER = """
 import os, signal, sys, torch
 torch.set_num_threads(1)
