@@ -1,15 +1,17 @@
 """Rendering speed of the appearance model on CPU: plain PyTorch forward vs the optimised renderer.
 
 For each preset and size, renders the same pose sequence twice through the full per-frame path (label map,
-generator conditioned on the previous frame, uint8 frame): once with the plain eval-mode forward under
-``torch.no_grad`` (the reference) and once with :func:`stage2_video.infer.optimize_generator` (what
-`dancesynth render` uses). Prints frames/s, the speed-up and the largest pixel difference (0-255 levels) between
+generator conditioned on the previous frame, uint8 frame) with the plain eval-mode forward (the reference)
+and with :func:`stage2_video.infer.optimize_generator` (what `dancesynth render` uses). Both are warmed up, then
+timed in ``--rounds`` interleaved rounds (plain, optimised, optimised, plain, ...) so load changes on the shared
+CPU hit both alike; the median round is reported. Prints frames/s, the speed-up (ratio of the medians), the
+spread of the rounds and the largest pixel difference (0-255 levels) between
 the two networks on identical inputs (each frame conditioned on the plain run's previous frame, so rounding
 differences do not compound through the random network's recursion); "unchanged output" means <= 1.
 Weights are random (speed does not depend on them).
 
     python benchmarks/bench_render.py                      # small and paper presets at 256 and 512 px
-    python benchmarks/bench_render.py --presets small --sizes 256 --frames 30 --threads 1
+    python benchmarks/bench_render.py --presets small --sizes 256 --frames 30 --rounds 7 --threads 2
 """
 
 from __future__ import annotations
@@ -36,13 +38,26 @@ def dancing_poses(frames: int, size: int) -> PoseSequence:
     return PoseSequence(kp, 15.0, size, size)
 
 
-def timed_render(model: AppearanceModel, poses: PoseSequence, warmup: int = 2) -> float:
-    """Frames/s of :func:`render_frames` over the frames after ``warmup``."""
-    count, start = 0, None
-    for count, _ in enumerate(render_frames(model, poses, normalize=False), start=1):
-        if count == warmup:
-            start = time.perf_counter()
-    return (count - warmup) / (time.perf_counter() - start)
+def timed_render(model: AppearanceModel, poses: PoseSequence) -> float:
+    """Frames/s of one :func:`render_frames` pass over ``poses``."""
+    start = time.perf_counter()
+    count = sum(1 for _ in render_frames(model, poses, normalize=False))
+    return count / (time.perf_counter() - start)
+
+
+def interleaved_fps(models: list[AppearanceModel], poses: PoseSequence, rounds: int) -> list[list[float]]:
+    """Frames/s of each model in each of ``rounds`` rounds, after one untimed warm-up pass of each.
+
+    Rounds alternate the order (A B, B A, ...) so neither model always runs right after the other's caches.
+    """
+    for model in models:
+        timed_render(model, poses)
+    fps: list[list[float]] = [[] for _ in models]
+    for r in range(rounds):
+        order = range(len(models)) if r % 2 == 0 else reversed(range(len(models)))
+        for i in order:
+            fps[i].append(timed_render(models[i], poses))
+    return fps
 
 
 def max_step_diff(plain: AppearanceModel, fast: AppearanceModel, poses: PoseSequence) -> int:
@@ -62,6 +77,7 @@ def main() -> None:
     parser.add_argument("--presets", nargs="+", default=["small", "paper"])
     parser.add_argument("--sizes", nargs="+", type=int, default=[256, 512])
     parser.add_argument("--frames", type=int, default=20, help="frames per measurement (paper preset: a quarter)")
+    parser.add_argument("--rounds", type=int, default=5, help="timed rounds per network (median reported)")
     parser.add_argument("--threads", type=int, help="torch CPU threads (default: torch's choice)")
     args = parser.parse_args()
     if args.threads:
@@ -69,24 +85,25 @@ def main() -> None:
     device = torch.device("cpu")
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads; CPU shared with other jobs: "
           "absolute numbers vary with their load, the ratio column is the comparison.")
-    print(f"{'preset':<7}{'size':>6}{'plain fps':>11}{'optimised fps':>15}{'ratio':>7}{'max |diff| (0-255)':>20}")
+    print(f"{'preset':<7}{'size':>6}{'plain fps':>11}{'optimised fps':>15}{'ratio':>7}{'plain range':>14}"
+          f"{'optimised range':>17}{'max |diff|':>12}")
     for name in args.presets:
         for size in args.sizes:
             config = preset(name, width=size, height=size)
             torch.manual_seed(0)
             generator = Pix2PixHD(config).generator.eval()
             frames = max(4, args.frames // 4) if name == "paper" else args.frames
-            poses = dancing_poses(frames + 2, size)
+            poses = dancing_poses(frames, size)
             framing = whole_canvas(size, size, size, size)
             plain = AppearanceModel(generator, config, framing, None, 15.0, device)
-            with torch.no_grad():
-                plain_fps = timed_render(plain, poses)
             fast = AppearanceModel(optimize_generator(generator, 6, size, size, device), config, framing, None,
                                    15.0, device)
-            fast_fps = timed_render(fast, poses)
+            plain_runs, fast_runs = interleaved_fps([plain, fast], poses, args.rounds)
+            plain_fps, fast_fps = float(np.median(plain_runs)), float(np.median(fast_runs))
             diff = max_step_diff(plain, fast, poses)
-            print(f"{name:<7}{size:>6}{plain_fps:>11.2f}{fast_fps:>15.2f}{fast_fps / plain_fps:>7.2f}{diff:>20d}",
-                  flush=True)
+            spread = [f"{min(runs):.2f}-{max(runs):.2f}" for runs in (plain_runs, fast_runs)]
+            print(f"{name:<7}{size:>6}{plain_fps:>11.2f}{fast_fps:>15.2f}{fast_fps / plain_fps:>7.2f}"
+                  f"{spread[0]:>14}{spread[1]:>17}{diff:>12d}", flush=True)
 
 
 if __name__ == "__main__":

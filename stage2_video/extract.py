@@ -13,6 +13,7 @@ LSmallToe / RSmallToe are always absent (confidence 0). Confidence = landmark vi
 from __future__ import annotations
 
 import os
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -141,7 +142,7 @@ class BlazePose:
             # Resampled to a fixed size so small people are enlarged and the tracking graph sees steady input.
             s = self.crop_size / max(x1 - x0, y1 - y0)
             image = cv2.resize(image, (max(1, round((x1 - x0) * s)), max(1, round((y1 - y0) * s))),
-                               interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_LINEAR)
+                               interpolation=cv2.INTER_AREA if s < 1 else cv2.INTER_CUBIC)
         region = (float(x0), float(y0), float(x1 - x0), float(y1 - y0))
         result = graph.process(np.ascontiguousarray(image))
         if result.pose_landmarks is None:
@@ -173,26 +174,38 @@ def extract_poses(video: str | os.PathLike, config: ExtractConfig | None = None,
         DancesynthError: the video is missing or unreadable, or the person is absent in more than
             ``config.max_missing_fraction`` of the frames.
     """
-    config = config or ExtractConfig()
     video = Path(video)
     if not video.is_file():
         raise DancesynthError(f"Video {video} does not exist; check the path.")
     info = probe_video(video)
+    return extract_frames(read_frames(video), info.fps, (info.width, info.height), config, progress,
+                          total=info.num_frames or None, source=str(video))
+
+
+def extract_frames(frames: Iterable[np.ndarray], fps: float, size: tuple[int, int],
+                   config: ExtractConfig | None = None, progress: bool = True, total: int | None = None,
+                   source: str = "the frames") -> Extraction:
+    """:func:`extract_poses` on decoded frames (RGB uint8 ``[height, width, 3]``, ``size = (width, height)``).
+
+    Used where frames are already in memory (e.g. generated frames), so no lossy re-encoding blurs thin limbs.
+
+    Raises:
+        DancesynthError: the person is absent in more than ``config.max_missing_fraction`` of the frames.
+    """
+    config = config or ExtractConfig()
     raw, found = [], []
     with BlazePose(config.min_visibility, config.crop_size) as estimator:
-        tracker = PersonTracker(estimator, info.width, info.height, config.tracker)
-        frames = tqdm(read_frames(video), total=info.num_frames or None, desc="extracting poses",
-                      unit="frame", disable=not progress)
-        for frame in frames:
+        tracker = PersonTracker(estimator, size[0], size[1], config.tracker)
+        for frame in tqdm(frames, total=total, desc="extracting poses", unit="frame", disable=not progress):
             pose = tracker.step(frame)
             found.append(pose is not None)
             raw.append(np.zeros((NUM_JOINTS, 3), np.float32) if pose is None else pose)
     found = np.array(found, bool)
     missing = 1.0 - found.mean() if len(found) else 1.0
     if missing > config.max_missing_fraction:
-        raise DancesynthError(f"No person was found in {missing:.0%} of the frames of {video}; "
+        raise DancesynthError(f"No person was found in {missing:.0%} of the frames of {source}; "
                               "use a video where one person is fully visible.")
-    seq = PoseSequence(np.stack(raw), info.fps, info.width, info.height)
+    seq = PoseSequence(np.stack(raw), fps, size[0], size[1])
     seq = smooth(interpolate_missing(seq), config.smoothing)
     return Extraction(seq, found, tracker.stats)
 
