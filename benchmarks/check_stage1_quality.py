@@ -1,13 +1,16 @@
-"""Done-criteria of a stage-1 run on a held-out song: no freezing, seed variety, movement on the music's beats.
+"""Done-criteria of a stage-1 run on held-out songs: no freezing, seed variety, movement on the music's beats.
 
-For the first test clip of the run's dataset (or --data), a dance of --seconds is generated with two seeds and
-compared with the real dances of the held-out (test + val) clips:
+For each of the first --clips held-out (test, then val) clips of the run's dataset (or --data), a dance of --seconds
+is generated with two seeds and compared with the real dances of the held-out clips:
   * freeze: mean joint speed (pixels/s) over the last 10 s >= 50 % of the first 10 s, and >= 50 % of the real
     dances' mean speed;
-  * seeds: mean distance (pixels) between the joints of the two seeds' dances > 0;
+  * seeds: mean distance (pixels) between the joints of the two seeds' dances, against the same distance between
+    two different real dances of one style (the scale of "another dance"); the seeds differ when the gap is at
+    least 10 % of that;
   * beats: beat hit rate (kinematic beats within 2 frames of a music beat, stage1_pose.metrics) against chance,
-    the hit rate of the same kinematic beats after random circular shifts (same count and rhythm, random phase).
-Usage: python benchmarks/check_stage1_quality.py RUN_DIR [--data DIR] [--seconds 60] [--precision auto]
+    the hit rate of the same kinematic beats after random circular shifts (same count and rhythm, random phase);
+    on the beat when it beats chance by 0.10.
+Usage: python benchmarks/check_stage1_quality.py RUN_DIR [--data DIR] [--clips 3] [--seconds 60] [--precision auto]
 """
 
 from __future__ import annotations
@@ -34,10 +37,23 @@ def chance_hit_rate(kin: np.ndarray, music: np.ndarray, frames: int, rng: np.ran
     return float(np.nanmean(rates))
 
 
+def real_pair_gap(data: DanceDataset, clips: list, frames: int) -> float:
+    """Mean joint distance (pixels) between two real dances of one style, over pairs of the given clips."""
+    gaps = []
+    for i, a in enumerate(clips):
+        for b in clips[i + 1:]:
+            if a.style == b.style:
+                xa, xb = data.load_poses(a).xy[:frames], data.load_poses(b).xy[:frames]
+                n = min(len(xa), len(xb))
+                gaps.append(float(np.linalg.norm(xa[:n] - xb[:n], axis=-1).mean()))
+    return float(np.mean(gaps)) if gaps else float("nan")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run", metavar="RUN_DIR")
     parser.add_argument("--data", metavar="DIR", help="dataset folder (default: the one the run was trained on)")
+    parser.add_argument("--clips", type=int, default=3, help="held-out clips to check (default 3)")
     parser.add_argument("--seconds", type=float, default=60.0)
     parser.add_argument("--precision", default="auto", choices=("auto", "fp32", "int8"))
     parser.add_argument("--device", default="auto")
@@ -46,38 +62,38 @@ def main() -> None:
     model = load_pose_model(args.run, args.device, args.precision)
     data = DanceDataset(args.data or model.meta["data"])
     held_out = data.clips("test") + data.clips("val")
-    clip = held_out[0]
     fps = data.fps
-    samples = data.load_audio(clip)[: int(args.seconds * data.sample_rate)]
-    dances = [generate_dance(model, samples, data.sample_rate, seed=s) for s in (0, 1)]
-    frames = len(dances[0])
     ten = int(10 * fps)
-    music = data.load_beats(clip)["beats"] * fps
-    music = music[music < frames]
+    frames_wanted = int(args.seconds * fps)
     real_speed = float(np.mean([mean_speed(data.load_poses(c).xy, fps) for c in held_out]))
-    real_xy = data.load_poses(clip).xy[:frames]
-    real_kin = kinematic_beats(real_xy, fps)
+    pair_gap = real_pair_gap(data, data.clips("train") + held_out, frames_wanted)
     rng = np.random.default_rng(0)
-
-    print(f"run {args.run} ({model.meta['method']}, epoch {model.meta['epoch']}), held-out clip {clip.id} "
-          f"({clip.style}), {frames / fps:.0f} s, {len(music)} music beats")
-    print(f"{'dance':<8}{'speed first 10s':>16}{'speed last 10s':>15}{'last/first':>11}{'vs real':>8}"
-          f"{'kin beats':>10}{'hit rate':>9}{'chance':>8}")
-    checks = []
-    for name, xy in [("real", real_xy)] + [(f"seed {s}", d.xy) for s, d in zip((0, 1), dances)]:
-        first, last = mean_speed(xy[:ten], fps), mean_speed(xy[-ten:], fps)
-        kin = real_kin if name == "real" else kinematic_beats(xy, fps)
-        hit, chance = beat_hit_rate(kin, music), chance_hit_rate(kin, music, len(xy), rng)
-        print(f"{name:<8}{first:16.1f}{last:15.1f}{last / max(first, 1e-9):11.2f}{last / real_speed:8.2f}"
-              f"{len(kin):10d}{hit:9.2f}{chance:8.2f}")
-        if name != "real":
-            checks.append((name, last >= 0.5 * first and last >= 0.5 * real_speed, hit > chance + 0.1))
-    seed_gap = float(np.linalg.norm(dances[0].xy - dances[1].xy, axis=-1).mean())
-    print(f"real held-out mean speed {real_speed:.1f} px/s; seeds 0 vs 1 differ by {seed_gap:.1f} px on average")
-    for name, moving, on_beat in checks:
-        print(f"{name}: no freeze {'PASS' if moving else 'FAIL'}, beats above chance (+0.10) "
-              f"{'PASS' if on_beat else 'FAIL'}")
-    print(f"seeds differ: {'PASS' if seed_gap > 1.0 else 'FAIL'}")
+    print(f"run {args.run} ({model.meta['method']}, epoch {model.meta['epoch']}); real held-out mean speed "
+          f"{real_speed:.1f} px/s; two real dances of one style differ by {pair_gap:.1f} px on average")
+    print(f"{'clip':<16}{'dance':<8}{'speed first 10s':>16}{'speed last 10s':>15}{'last/first':>11}{'vs real':>8}"
+          f"{'kin beats':>10}{'hit rate':>9}{'chance':>8}{'seed gap px':>12}")
+    verdicts = []
+    for clip in held_out[:args.clips]:
+        samples = data.load_audio(clip)[: int(args.seconds * data.sample_rate)]
+        dances = [generate_dance(model, samples, data.sample_rate, seed=s) for s in (0, 1)]
+        frames = len(dances[0])
+        music = data.load_beats(clip)["beats"] * fps
+        music = music[music < frames]
+        real_xy = data.load_poses(clip).xy[:frames]
+        seed_gap = float(np.linalg.norm(dances[0].xy - dances[1].xy, axis=-1).mean())
+        for name, xy in [("real", real_xy)] + [(f"seed {s}", d.xy) for s, d in zip((0, 1), dances)]:
+            first, last = mean_speed(xy[:ten], fps), mean_speed(xy[-ten:], fps)
+            kin = kinematic_beats(xy, fps)
+            hit, chance = beat_hit_rate(kin, music), chance_hit_rate(kin, music, len(xy), rng)
+            gap = f"{seed_gap:12.1f}" if name == "seed 1" else ""
+            print(f"{clip.id:<16}{name:<8}{first:16.1f}{last:15.1f}{last / max(first, 1e-9):11.2f}"
+                  f"{last / real_speed:8.2f}{len(kin):10d}{hit:9.2f}{chance:8.2f}{gap}")
+            if name != "real":
+                verdicts.append((clip.id, name, last >= 0.5 * first and last >= 0.5 * real_speed,
+                                 hit > chance + 0.1, seed_gap >= 0.1 * pair_gap))
+    for clip_id, name, moving, on_beat, differs in verdicts:
+        print(f"{clip_id} {name}: no freeze {'PASS' if moving else 'FAIL'}, beats above chance (+0.10) "
+              f"{'PASS' if on_beat else 'FAIL'}, seeds differ (>= 10 % of a real pair) {'PASS' if differs else 'FAIL'}")
 
 
 if __name__ == "__main__":
