@@ -11,7 +11,7 @@ import skimage.data
 from stage1_pose.errors import DancesynthError
 from stage1_pose.media import write_video
 from stage1_pose.skeleton import JOINT_INDEX
-from stage2_video.extract import BlazePose, ExtractConfig, blazepose_to_body25, extract_poses
+from stage2_video.extract import BlazePose, ExtractConfig, blazepose_to_body25, extract_frames, extract_poses
 from stage2_video.smoothing import SmoothingConfig
 
 J = JOINT_INDEX
@@ -91,6 +91,17 @@ def test_joints_follow_a_translated_photo_and_gaps_are_interpolated(tmp_path, as
     assert np.abs(nose - expected).max() < 8
     step = np.diff(nose, axis=0)
     assert np.abs(step - (14, 5)).max() < 5
+
+
+def test_frames_in_memory_give_poses_on_their_canvas(astronaut):
+    frames = [place((300, 360), astronaut, 200, 20 + 10 * t, 30) for t in range(4)]
+    poses = extract_frames(frames, 12.5, (360, 300), NO_SMOOTHING, progress=False).poses
+    assert (len(poses), poses.width, poses.height, poses.fps) == (4, 360, 300, 12.5)
+    expected = np.array([(20 + 10 * t, 30) for t in range(4)]) + np.array(ASTRONAUT_EXPECTED["Nose"]) * 200 / 512
+    # Within one eye distance (17 px at this size): tracking mode put one frame's nose 11 px low (measured).
+    assert np.abs(poses.keypoints[:, J["Nose"], :2] - expected).max() < 15
+    with pytest.raises(DancesynthError, match="No person was found in 100% of the frames of the frames"):
+        extract_frames([np.full((120, 160, 3), 90, np.uint8)] * 3, 10, (160, 120), progress=False)
 
 
 def test_rotated_container_gives_upright_poses(tmp_path, astronaut):
