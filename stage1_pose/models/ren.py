@@ -41,6 +41,10 @@ class RenConfig:
     ``w_fm`` feature matching, ``w_l1`` L1, ``w_perceptual`` pose perceptual loss (needs ``stgcn_run``,
     a run folder written by ``dancesynth train-stgcn``), ``w_gp`` gradient penalty, ``w_attention`` the
     self-attention penalty ||AA^T - I||_F^2.
+    Deviations from the paper (paper values in the ``paper`` preset): ``head_kernel`` frames seen by the
+    pose head's first layer (1 = the paper's per-frame MLP; wider lets it low-pass the per-frame audio codes,
+    which are nearly white from frame to frame and made held-out dances jitter); ``w_velocity`` weight of an
+    L1 loss between generated and real frame-to-frame motion (0 = the paper), which charges jitter directly.
     """
 
     samples_per_frame: int = 1024
@@ -52,6 +56,7 @@ class RenConfig:
     noise_std: float = 0.33
     mlp_hidden: int = 1024
     mlp_blocks: int = 3
+    head_kernel: int = 1
     dropout: float = 0.5
     local_window: int = 5
     local_stride: int = 3
@@ -63,6 +68,7 @@ class RenConfig:
     w_global: float = 1.0
     w_fm: float = 1.0
     w_l1: float = 200.0
+    w_velocity: float = 0.0
     w_perceptual: float = 1.0
     w_gp: float = 1.0
     w_attention: float = 1.0
@@ -103,11 +109,12 @@ def _ablation(config: RenConfig, row: str) -> RenConfig:
 
 
 _PAPER = RenConfig()
-# CPU-sized: 3-s windows, narrow layers, same structure and loss weights as the paper; 25 epochs of the
+# CPU-sized: 3-s windows, narrow layers, same structure and loss weights as the paper plus the two
+# anti-jitter options (RenConfig docstring); 25 epochs of the
 # 30-clip x 60-s built-in dataset take about 20 min at 0.4 s per step on one idle core.
 _SMALL = RenConfig(window_frames=45, audio_channels=(8, 16, 32, 32), code_dim=64, gru_hidden=64,
                    mlp_hidden=128, mlp_blocks=2, dropout=0.1, d_channels=16, d_embed=64, attention_dim=16,
-                   batch_size=8, epochs=25)
+                   batch_size=8, epochs=25, head_kernel=9, w_velocity=1000.0)
 
 # "small" / "paper" are the full model; "<row>-small" / "<row>-paper" the ablation rows.
 REN_PRESETS: dict[str, RenConfig] = {"small": _SMALL, "paper": _PAPER}
@@ -191,7 +198,13 @@ class RenGenerator(nn.Module):
         super().__init__()
         self.music = MusicEncoder(config.samples_per_frame, config.audio_channels, config.code_dim, config.gru_hidden)
         self.noise_gru = nn.GRU(config.noise_dim, config.noise_dim, batch_first=True)
-        self.inp = nn.Linear(2 * config.gru_hidden + config.noise_dim, config.mlp_hidden)
+        k = config.head_kernel
+        if k < 1 or k % 2 == 0:
+            raise DancesynthError(f"head_kernel must be an odd number of frames >= 1, not {k}; use e.g. 1 or 9.")
+        # One linear layer over the k frames centred on each frame: a temporal convolution whose weights keep
+        # the paper's per-frame layer shape for k = 1 (so runs saved before this option still load).
+        self.head_kernel = k
+        self.inp = nn.Linear(k * (2 * config.gru_hidden + config.noise_dim), config.mlp_hidden)
         self.blocks = nn.Sequential(*[ResidualBlock(config.mlp_hidden) for _ in range(config.mlp_blocks)])
         self.dropout = nn.Dropout(config.dropout)
         self.out = nn.Linear(config.mlp_hidden, NUM_JOINTS * 2)
@@ -199,9 +212,17 @@ class RenGenerator(nn.Module):
     def forward(self, audio: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
         h = self.music(audio)
         z = torch.tanh(self.noise_gru(noise)[0])
-        x = self.blocks(self.inp(torch.cat([h, z], dim=-1)))
+        x = self.blocks(self.inp(frame_context(torch.cat([h, z], dim=-1), self.head_kernel)))
         b, t, _ = audio.shape
         return self.out(self.dropout(x)).view(b, t, NUM_JOINTS, 2)
+
+
+def frame_context(x: torch.Tensor, k: int) -> torch.Tensor:
+    """``[B, T, C]`` -> ``[B, T, k * C]``: each frame with its k // 2 neighbours on either side (edge frames
+    repeated at the ends), frame-major, so a linear layer on it is a temporal convolution of width k."""
+    pad = k // 2
+    padded = torch.cat([x[:, :1].expand(-1, pad, -1), x, x[:, -1:].expand(-1, pad, -1)], dim=1)
+    return padded.unfold(1, k, 1).transpose(2, 3).flatten(2)
 
 
 def temporal_difference(poses: torch.Tensor) -> torch.Tensor:
@@ -449,6 +470,10 @@ class RenMethod(Stage1Method):
             l1 = F.l1_loss(fake, real)
             loss = cfg.w_l1 * l1
             logs["l1"] = l1.item()
+            if cfg.w_velocity > 0:
+                velocity = F.l1_loss(fake.diff(dim=1), real.diff(dim=1))
+                loss = loss + cfg.w_velocity * velocity
+                logs["velocity"] = velocity.item()
             if self.d_local is not None:
                 adv_local = _bce(self.d_local(fake), 1.0)
                 loss = loss + cfg.w_local * adv_local

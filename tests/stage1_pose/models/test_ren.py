@@ -7,7 +7,8 @@ from stage1_pose.errors import DancesynthError
 from stage1_pose.models.base import Batch
 from stage1_pose.models.ren import (
     REN_PRESETS, GlobalContentDiscriminator, LocalTemporalDiscriminator, RenConfig, RenGenerator, RenMethod,
-    StructuredSelfAttention, attention_penalty, gradient_penalty, sub_sequences, temporal_difference,
+    StructuredSelfAttention, attention_penalty, frame_context, gradient_penalty, sub_sequences,
+    temporal_difference,
 )
 from stage1_pose.models.stgcn import STGCN, STGCNConfig
 from stage1_pose.perceptual import PosePerceptualLoss
@@ -34,6 +35,9 @@ def test_presets_cover_every_ablation_row():
     paper = REN_PRESETS["paper"]
     assert (paper.w_l1, paper.lr_g, paper.lr_d_local, paper.lr_d_global) == (200.0, 3e-4, 3e-4, 5e-4)
     assert paper.perceptual_layer_weights[:3] == (20.0, 5.0, 1.0)
+    # The anti-jitter deviations are off in the paper preset and on in the small one.
+    assert (paper.head_kernel, paper.w_velocity) == (1, 0.0)
+    assert REN_PRESETS["small"].head_kernel > 1 and REN_PRESETS["small"].w_velocity > 0
     with pytest.raises(DancesynthError, match="Unknown ren preset"):
         RenConfig.preset("nope")
 
@@ -134,3 +138,23 @@ def test_tiny_generator_overfits_one_clip():
     for _ in range(40):
         last = method.training_step(batch, 0)["l1"]
     assert last < 0.2 * first
+
+
+def test_even_head_kernel_is_a_user_error():
+    with pytest.raises(DancesynthError, match="head_kernel must be an odd"):
+        RenGenerator(tiny(head_kernel=4))
+
+
+def test_velocity_loss_only_where_configured():
+    batch = Batch(torch.randn(2, 20, S), torch.randn(2, 20, 25, 2), torch.tensor([0, 1]))
+    for w, expected in ((1000.0, True), (0.0, False)):
+        method = RenMethod(tiny("l1-small", w_velocity=w))
+        method._optimizers = method.configure_optimizers()
+        logs = method.training_step(batch, 0)
+        assert ("velocity" in logs) == expected and (not expected or logs["velocity"] > 0)
+
+
+def test_frame_context_stacks_neighbours_and_repeats_edges():
+    x = torch.arange(4.0).view(1, 4, 1)
+    assert frame_context(x, 1).equal(x)
+    assert frame_context(x, 3)[0].tolist() == [[0, 0, 1], [0, 1, 2], [1, 2, 3], [2, 3, 3]]
