@@ -127,8 +127,9 @@ class Trainer:
                                   progress=self.rank == 0)
         if len(self.data) < self.batch_size:
             raise DancesynthError(f"The training split of {data_dir} gives {len(self.data)} windows of {window} "
-                                  f"frames, fewer than one batch of {self.batch_size}; add clips or lower "
-                                  "--batch-size / --window.")
+                                  f"frames, fewer than one batch of {self.batch_size}; add clips (at least "
+                                  f"{window / self.data.dataset.fps:g} s long) or lower --batch-size or "
+                                  "--set window_frames=N.")
         self.dataset: DanceDataset = self.data.dataset
         torch.manual_seed(options.seed)  # same initial weights in every process
         self.method: Stage1Method = build_method(method_name, config).to(device)
