@@ -11,8 +11,9 @@ import csv
 import json
 import os
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -35,15 +36,19 @@ POSE_METHOD = "dance_revolution"
 
 @dataclass(frozen=True)
 class DemoPlan:
-    """Sizes and time shares of the demo; shares are fractions of the total minutes."""
+    """Sizes and time budget of the demo: stage-1 training gets ``pose_share`` of the total minutes; stage 2 trains
+    until ``finish_minutes`` before the deadline (the dance step's time on 2 cores), at least ``min_video_minutes``.
+    ``pose_overrides`` change fields of the stage-1 small preset (e.g. a shorter window for short clips)."""
 
     clips: int = 40
     clip_seconds: float = 60.0
     pose_share: float = 0.35
-    video_share: float = 0.4
+    finish_minutes: float = 2.0
+    min_video_minutes: float = 1.0
     target_seconds: float = 60.0
     target_size: int = 512
     dance_seconds: float = 20.0
+    pose_overrides: dict[str, Any] = field(default_factory=dict)
 
 
 def _mean_speed(seq: PoseSequence) -> float:
@@ -87,6 +92,7 @@ def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, d
     out.mkdir(parents=True, exist_ok=True)
     timings: dict[str, float] = {}
     clock = time.monotonic()
+    deadline = clock + minutes * 60.0
 
     def step(name: str) -> None:
         nonlocal clock
@@ -103,7 +109,8 @@ def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, d
 
     pose_run = out / "runs" / "pose" / POSE_METHOD
     if not (pose_run / "latest.json").is_file():
-        train(POSE_METHOD, data_dir, pose_run, preset="small", minutes=minutes * plan.pose_share, device=device)
+        train(POSE_METHOD, data_dir, pose_run, preset="small", minutes=minutes * plan.pose_share, device=device,
+              overrides=plan.pose_overrides)
     step("stage-1 training")
 
     # The target person dances a training clip the pose model has seen; the held-out song is new to both.
@@ -122,7 +129,8 @@ def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, d
 
     video_run = out / "runs" / "video"
     if not (video_run / "latest.json").is_file():
-        train_video(target_video, video_run, "small", TrainOptions(minutes=minutes * plan.video_share),
+        video_minutes = max(plan.min_video_minutes, (deadline - time.monotonic()) / 60.0 - plan.finish_minutes)
+        train_video(target_video, video_run, "small", TrainOptions(minutes=video_minutes),
                     poses=target_poses, device=device)
     step("stage-2 training")
 
@@ -144,7 +152,7 @@ def _summary(out: Path, dataset: DanceDataset, clip, pose_run: Path, video_run: 
     model = load_pose_model(pose_run, device)
     generated = generate_dance(model, samples, SONG_SR, seed=seed)
     real = dataset.load_poses(clip).slice_frames(0, len(generated))
-    rows = {"generated (dance_revolution, small)": dance_metrics(generated, beats), "real dance": dance_metrics(real, beats)}
+    rows = {f"generated ({POSE_METHOD}, small)": dance_metrics(generated, beats), "real dance": dance_metrics(real, beats)}
     _contact_sheet(out / "side_by_side.mp4", out / "frames.png")
     val = _last_row(video_run / "validation.csv") if (video_run / "validation.csv").is_file() else {}
     lines = [
@@ -163,7 +171,7 @@ def _summary(out: Path, dataset: DanceDataset, clip, pose_run: Path, video_run: 
               "", "## Stage 2: held-out frames of the target video", ""]
     if val:
         lines += [f"SSIM {float(val['ssim']):.3f}, PSNR {float(val['psnr']):.2f} dB at step {val['step']}."]
-    lines += ["", "Training curves: [stage 1](runs/pose/dance_revolution/) · [stage 2](runs/video/losses.png)", "",
+    lines += ["", f"Training curves: [stage 1](runs/pose/{POSE_METHOD}/) · [stage 2](runs/video/losses.png)", "",
               "## Time per step", "", "| step | seconds |", "|---|---|"]
     lines += [f"| {k} | {v:.0f} |" for k, v in timings.items()]
     path = out / "summary.md"

@@ -62,6 +62,8 @@ class Dancing2MusicConfig:
     hundredths of a torso length per frame. The paper feeds poses as they are (False, 1).
     Schedule: ``decomp_epochs`` epochs of decomposition, then composition until ``epochs``; ``composition``
     False is the paper's "w/o L_comp" ablation (units' movement codes drawn from the DU-VAE prior, no MM-GAN).
+    Test time: units whose motion is below ``redraw_motion`` times the real units' mean motion are drawn again,
+    up to ``redraw_tries`` draws (the authors' code redraws until motion exceeds a threshold; 0 switches it off).
     """
 
     feature_dim: int = 28
@@ -93,10 +95,15 @@ class Dancing2MusicConfig:
     composition: bool = True
     relative_movement: bool = False
     motion_scale: float = 1.0
+    redraw_motion: float = 0.5
+    redraw_tries: int = 10
 
     def __post_init__(self) -> None:
         if not 1 <= self.min_units <= self.max_units:
             raise DancesynthError(f"Need 1 <= min_units <= max_units, got {self.min_units} and {self.max_units}.")
+        if self.redraw_motion < 0 or self.redraw_tries < 1:
+            raise DancesynthError(f"Need redraw_motion >= 0 and redraw_tries >= 1, got {self.redraw_motion} and "
+                                  f"{self.redraw_tries}.")
         if self.composition and self.decomp_epochs >= self.epochs:
             raise DancesynthError(f"decomp_epochs ({self.decomp_epochs}) must be below epochs ({self.epochs}) "
                                   "so the composition phase runs; raise epochs.")
@@ -164,6 +171,15 @@ def absolute_positions(poses: np.ndarray) -> np.ndarray:
     out = poses + poses[:, ROOT:ROOT + 1]
     out[:, ROOT] = poses[:, ROOT]
     return out
+
+
+def unit_motion(units: torch.Tensor) -> float:
+    """Mean joint displacement per frame (model units, joints placed absolutely) of ``[n, 32, 50]`` units."""
+    xy = units.reshape(*units.shape[:2], NUM_JOINTS, 2)
+    offset = torch.ones(NUM_JOINTS, 1, device=xy.device)
+    offset[ROOT] = 0.0
+    xy = xy + xy[:, :, ROOT:ROOT + 1] * offset
+    return float((xy[:, 1:] - xy[:, :-1]).detach().norm(dim=-1).mean()) if units.shape[1] > 1 else 0.0
 
 
 class InitialPoseEncoder(nn.Module):
@@ -329,6 +345,8 @@ class Dancing2MusicMethod(Stage1Method):
         # many music beats as fit in it. Running mean over training windows, saved with the weights.
         self.register_buffer("beat_interval", torch.tensor(c.fps / 2.0))
         self.register_buffer("beat_windows", torch.tensor(0, dtype=torch.int64))
+        # Mean motion of the real training units (running mean over decomposition batches): the redraw threshold.
+        self.register_buffer("unit_motion", torch.tensor(0.0))
         # Optimisation steps done in each phase, so generation knows whether the MM-GAN has trained.
         self.register_buffer("phase_steps", torch.zeros(len(PHASES), dtype=torch.int64))
 
@@ -409,9 +427,11 @@ class Dancing2MusicMethod(Stage1Method):
         units = [du.cut_units(p, r) for p, runs in zip(poses, self.window_runs(poses)) for r in runs]
         if not units:
             return logs | {"units": 0.0}
-        losses = self.decomposition_losses(torch.from_numpy(np.concatenate(units)).to(batch.poses.device))
+        real = torch.from_numpy(np.concatenate(units)).to(batch.poses.device)
+        losses = self.decomposition_losses(real)
         self.optimize("vae", losses["total"])
         self.phase_steps[0] += 1
+        self.unit_motion += (unit_motion(real.flatten(2)) - self.unit_motion) / self.phase_steps[0]
         return logs | {f"vae_{k}": v.item() for k, v in losses.items()} | {"units": float(sum(map(len, units)))}
 
     # --- MM-GAN -----------------------------------------------------------------------------------------------
@@ -483,33 +503,54 @@ class Dancing2MusicMethod(Stage1Method):
         return torch.randn(shape, generator=generator,
                            device=device if generator is None else generator.device).to(device)
 
-    def compose_movements(self, audio_units: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
-        """Movement codes ``[n, z_mov]`` for ``[n, 32, 28]`` units of a song's audio: groups of up to max_units
-        units get z~_dan from their music's style (E_std) decoded by G_dan. The ablation, and a model saved before
-        its composition phase trained (e.g. previews during decomposition), draws them from the DU-VAE prior."""
+    def movement_codes(self, audio_units: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
+        """Movement codes ``[n, z_mov]`` for ``[n, 32, 28]`` units of a song's audio (n <= max_units): z~_dan from
+        their music's style (E_std) decoded by G_dan. The ablation, and a model saved before its composition
+        phase trained (e.g. previews during decomposition), draws them from the DU-VAE prior."""
         c = self.config
-        n = audio_units.shape[0]
         if not self.composes:
-            return self._randn((n, c.z_mov), generator)
-        out = []
-        for start in range(0, n, c.max_units):
-            group = audio_units[start:start + c.max_units]
-            s = self.style_feature(group[None])
-            out.append(self.g_dan(self.e_std(s, self._randn((1, c.noise_dim), generator)), len(group))[0])
-        return torch.cat(out)
+            return self._randn((len(audio_units), c.z_mov), generator)
+        s = self.style_feature(audio_units[None])
+        return self.g_dan(self.e_std(s, self._randn((1, c.noise_dim), generator)), len(audio_units))[0]
 
-    def decode_units(self, z_movs: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
-        """Eq. 11: units ``[n, 32, 25, 2]`` decoded one after another from ``[n, z_mov]`` codes; the first starts
-        from a prior sample of z_ini, each next one from the previous unit's last frame (encoded by E_ini)."""
-        z_ini = self._randn((1, self.config.z_ini), generator)
+    def dance_units(self, audio_units: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
+        """Eq. 11: units ``[n, 32, 25, 2]`` for ``[n, 32, 28]`` audio units, decoded one after another; the first
+        starts from a prior sample of z_ini, each next one from the previous unit's last frame (encoded by E_ini).
+
+        Units are drawn in groups (max_units composed together, or one at a time from the prior). As in the
+        authors' test code, a group whose motion stays below ``redraw_motion`` times the real units' mean motion
+        is drawn again, up to ``redraw_tries`` draws, keeping the liveliest.
+        """
+        c = self.config
+        z_ini = self._randn((1, c.z_ini), generator)
         anchor = None
+        floor = c.redraw_motion * float(self.unit_motion)
+        size = c.max_units if self.composes else 1
+        groups = []
+        for start in range(0, len(audio_units), size):
+            best, best_motion = None, -1.0
+            for _ in range(max(1, c.redraw_tries)):
+                codes = self.movement_codes(audio_units[start:start + size], generator)
+                units = self._decode_group(z_ini, anchor, codes)
+                motion = unit_motion(units)
+                if motion > best_motion:
+                    best, best_motion = units, motion
+                if motion >= floor:
+                    break
+            groups.append(best)
+            anchor = best[-1:, -1]
+            z_ini = self.e_ini(anchor)[0]
+        return torch.cat(groups).view(len(audio_units), du.UNIT_FRAMES, NUM_JOINTS, 2)
+
+    def _decode_group(self, z_ini: torch.Tensor, anchor: torch.Tensor | None, z_movs: torch.Tensor) -> torch.Tensor:
+        """Units ``[n, 32, 50]`` from ``[n, z_mov]`` codes, continuing from ``anchor`` (``[1, 50]`` or None)."""
         units = []
         for z_mov in z_movs:
             unit = self.g_uni(z_ini, z_mov[None], anchor)
             units.append(unit[0])
             anchor = unit[:, -1]
             z_ini = self.e_ini(anchor)[0]
-        return torch.stack(units).view(len(units), du.UNIT_FRAMES, NUM_JOINTS, 2)
+        return torch.stack(units)
 
     @torch.no_grad()
     def generate(self, audio: torch.Tensor, generator: torch.Generator | None = None,
@@ -534,6 +575,6 @@ class Dancing2MusicMethod(Stage1Method):
             full = np.concatenate([grid, grid[-1] + extra])
             spans = np.stack([full[4 * k:4 * k + 5] for k in range(n)])
             audio_units = torch.from_numpy(du.cut_units(feats, spans)).to(audio.device)
-            units = self.decode_units(self.compose_movements(audio_units, generator), generator)
+            units = self.dance_units(audio_units, generator)
             out.append(torch.from_numpy(du.warp_units(units.cpu().numpy(), grid, t)))
         return torch.stack(out).to(audio.device)

@@ -8,7 +8,8 @@ from stage1_pose import dance_units as du
 from stage1_pose.errors import DancesynthError
 from stage1_pose.models.base import Batch
 from stage1_pose.models.dancing2music import (
-    DANCING2MUSIC_PRESETS, POSE_DIM, Dancing2MusicConfig, Dancing2MusicMethod, absolute_positions, shift_root)
+    DANCING2MUSIC_PRESETS, POSE_DIM, Dancing2MusicConfig, Dancing2MusicMethod, absolute_positions, shift_root,
+    unit_motion)
 from stage1_pose.skeleton import ROOT
 
 TINY = replace(DANCING2MUSIC_PRESETS["small"], gru_hidden=32, mlp_hidden=32, z_mov=8, z_dan=8, noise_dim=4,
@@ -142,6 +143,30 @@ def test_generation_without_beats_uses_the_loudness_channel(trained):
     audio[0, ::8, 27] = 1.0  # a loudness rise every 8 frames
     out = trained.generate(torch.from_numpy(audio), torch.Generator().manual_seed(0))
     assert out.shape == (1, frames, 25, 2)
+
+
+def test_real_unit_motion_is_learned_and_still_draws_are_redrawn(trained):
+    whole_dances = _batch().poses.flatten(2)
+    assert float(trained.unit_motion) == pytest.approx(unit_motion(whole_dances), rel=0.3)
+    audio_units = torch.zeros(7, du.UNIT_FRAMES, 28)
+    saved_config, saved_motion = trained.config, trained.unit_motion.clone()
+    try:
+        trained.config = replace(TINY, redraw_tries=1)
+        once = trained.dance_units(audio_units, torch.Generator().manual_seed(5))
+        trained.config = replace(TINY, redraw_tries=8)
+        trained.unit_motion.fill_(1e6)  # unreachable: every group keeps its liveliest of 8 draws
+        best = trained.dance_units(audio_units, torch.Generator().manual_seed(5))
+        trained.unit_motion.fill_(0.0)  # every first draw passes: nothing is redrawn
+        again = trained.dance_units(audio_units, torch.Generator().manual_seed(5))
+    finally:
+        trained.config = saved_config
+        trained.unit_motion.copy_(saved_motion)
+    assert best.shape == once.shape == (7, du.UNIT_FRAMES, 25, 2)
+    assert torch.equal(once, again)
+    first_group = slice(0, TINY.max_units)
+    assert unit_motion(best[first_group].flatten(2)) > unit_motion(once[first_group].flatten(2))
+    with pytest.raises(DancesynthError, match="redraw"):
+        replace(TINY, redraw_tries=0)
 
 
 def test_model_before_composition_generates_from_the_prior(trained):

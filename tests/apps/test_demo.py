@@ -1,0 +1,44 @@
+"""`dancesynth demo`: from nothing to a dancing video with the song's audio, a summary and a time budget."""
+
+import time
+
+import pytest
+import torch
+
+torch.set_num_threads(1)
+
+from apps.cli import main  # noqa: E402
+from apps.demo import DemoPlan, run_demo  # noqa: E402
+from stage1_pose.media import probe_streams  # noqa: E402
+
+# The demo's own steps at toy sizes: 6 songs of 12 s, a 4-s target video, a 3-s dance.
+TOY = DemoPlan(clips=6, clip_seconds=12.0, target_seconds=4.0, target_size=128, dance_seconds=3.0,
+               finish_minutes=0.0, min_video_minutes=0.1, pose_overrides={"window_frames": 90, "batch_size": 4})
+
+
+def test_demo_writes_a_dance_with_the_song_summary_and_pictures_within_its_budget(tmp_path):
+    start = time.monotonic()
+    written = run_demo(tmp_path / "demo", minutes=1.2, device="cpu", plan=TOY)
+    elapsed = time.monotonic() - start
+    names = {p.name for p in written}
+    assert {"dance.mp4", "skeleton.mp4", "side_by_side.mp4", "summary.md"} <= names
+    streams = probe_streams(tmp_path / "demo" / "dance.mp4")
+    assert streams["video_codec"] == "h264" and streams["audio_codec"] == "aac"
+    assert streams["video_duration"] == pytest.approx(TOY.dance_seconds, abs=1 / streams["fps"])
+    assert streams["audio_duration"] == pytest.approx(TOY.dance_seconds, abs=1 / streams["fps"])
+    summary = (tmp_path / "demo" / "summary.md").read_text()
+    assert "beat hit rate" in summary and "SSIM" in summary and "| real dance |" in summary
+    assert (tmp_path / "demo" / "frames.png").stat().st_size > 0
+    # Training steps share the budget; only the fixed dance and summary steps may run past it.
+    assert elapsed < 1.2 * 60 + 60, elapsed
+
+    again = time.monotonic()
+    run_demo(tmp_path / "demo", minutes=1.2, device="cpu", plan=TOY)
+    assert time.monotonic() - again < elapsed / 2, "a finished demo's models and data are reused, not retrained"
+
+
+def test_too_small_budget_is_a_clear_error(tmp_path, capsys):
+    assert main(["demo", "--out", str(tmp_path / "d"), "--minutes", "1"]) == 1
+    err = capsys.readouterr().err
+    assert "--minutes must be more than 1" in err and "Traceback" not in err
+    assert not (tmp_path / "d" / "dance.mp4").exists()
