@@ -11,9 +11,11 @@ HELP = "build the built-in dataset, train small models and make a dancing video 
 DESCRIPTION = """\
 Run the whole pipeline on data the project makes itself, within a time budget:
   1. the built-in dataset of synthesised songs and dances (3 styles),
-  2. a small Dance Revolution pose model,
+  2. a small Dancing2Music pose model (the paper's ablation without the composition phase, which needs
+     far longer than the demo's minutes), whose units are warped onto the song's beats,
   3. a synthetic target person's video and a small pix2pixHD appearance model of them,
-  4. a dancing video for a held-out song, a skeleton video and a side-by-side video,
+  4. a dancing video for the held-out song whose real dance moves most, a skeleton video and a side-by-side
+     video,
   5. OUT/summary.md with beat metrics of the generated dance vs the real one, held-out SSIM/PSNR of the
      appearance model, a strip of frames and the time each step took.
 Each step is skipped when its output exists, so an interrupted demo continues where it stopped.
