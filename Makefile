@@ -13,7 +13,7 @@ export NUMBA_CACHE_DIR := $(CURDIR)/$(VENV)/numba-cache
 install: $(STAMP)
 
 $(STAMP): pyproject.toml
-	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip --version >/dev/null 2>&1 || $(PYTHON) -m venv --clear $(VENV)
 	$(PY) -m pip install --upgrade pip
 	$(PY) -m pip install -e ".[pose,test]"
 	$(PY) -m pip install --no-deps $(MEDIAPIPE)
