@@ -9,13 +9,17 @@ from __future__ import annotations
 
 import csv
 import json
+import multiprocessing
 import os
+import sys
 import time
+import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import torch
 
 from apps.compose import SONG_SR, dance
 from stage1_pose.data.dataset import Clip, DanceDataset
@@ -27,7 +31,7 @@ from stage1_pose.generate import generate_dance, load_pose_model
 from stage1_pose.media import load_song, read_frames
 from stage1_pose.metrics import beat_align_score, beat_coverage, beat_hit_rate
 from stage1_pose.skeleton import PoseSequence, body_scale, resample
-from stage1_pose.train import train
+from stage1_pose.train import TrainerConfig, train
 from stage2_video.synthetic_person import appearance_preset, write_person_video
 from stage2_video.train import TrainOptions, train_video
 
@@ -40,17 +44,16 @@ POSE_METHOD = "dancing2music"
 
 @dataclass(frozen=True)
 class DemoPlan:
-    """Sizes and time budget of the demo: stage-1 training gets ``pose_share`` of the total minutes; stage 2 trains
-    until ``finish_minutes`` before the deadline (the dance step's time on 2 cores), at least ``min_video_minutes``.
+    """Sizes and time budget of the demo: both models train at the same time (one core each) until ``finish_minutes``
+    before the deadline (the dance step's time on 2 cores), each at least ``min_train_minutes``.
     ``pose_preset`` is the stage-1 preset, ``pose_overrides`` change its fields (e.g. a shorter window for short
     clips)."""
 
     clips: int = 40
     clip_seconds: float = 60.0
     pose_preset: str = "small-nocomp"
-    pose_share: float = 0.35
-    finish_minutes: float = 2.0
-    min_video_minutes: float = 1.0
+    finish_minutes: float = 2.5
+    min_train_minutes: float = 0.5
     target_seconds: float = 60.0
     target_size: int = 512
     dance_seconds: float = 20.0
@@ -88,6 +91,30 @@ def _contact_sheet(video: Path, out: Path, count: int = 6) -> None:
         cv2.imwrite(str(tmp), cv2.cvtColor(strip, cv2.COLOR_RGB2BGR))
 
 
+def _train_pose(log: Path, data_dir: Path, run: Path, preset: str, minutes: float, device: str,
+                overrides: dict[str, Any], seed: int) -> None:
+    """Stage-1 training in a child process: one thread, progress and errors written to ``log``, exit code 1 on a
+    user error (its message is the log's last line)."""
+    torch.set_num_threads(1)
+    with open(log, "w") as f:
+        sys.stdout = sys.stderr = f
+        try:
+            train(POSE_METHOD, data_dir, run, preset=preset, minutes=minutes, device=device, overrides=overrides,
+                  options=TrainerConfig(preview_every=50, seed=seed))
+        except DancesynthError as e:
+            print(f"error: {e}", flush=True)
+            sys.exit(1)
+        except Exception:
+            traceback.print_exc()
+            print("error: stage-1 training crashed (traceback above)", flush=True)
+            sys.exit(1)
+
+
+def _last_error(log: Path) -> str:
+    lines = [line for line in log.read_text(errors="replace").splitlines() if line.startswith("error: ")]
+    return lines[-1][len("error: "):] if lines else "the process stopped without a message"
+
+
 def _last_row(path: Path) -> dict[str, str]:
     with open(path) as f:
         rows = list(csv.DictReader(f))
@@ -118,11 +145,22 @@ def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, d
     dataset = DanceDataset(data_dir)
     step("built-in dataset")
 
+    # The two models are independent: stage 1 trains in a second process while this one makes the target video
+    # and trains stage 2, each on its own core, both until finish_minutes before the deadline.
+    train_until = deadline - plan.finish_minutes * 60.0
     pose_run = out / "runs" / "pose" / POSE_METHOD
+    pose_job = None
     if not (pose_run / "latest.json").is_file():
-        train(POSE_METHOD, data_dir, pose_run, preset=plan.pose_preset, minutes=minutes * plan.pose_share, device=device,
-              overrides=plan.pose_overrides)
-    step("stage-1 training")
+        pose_run.mkdir(parents=True, exist_ok=True)
+        pose_log = pose_run / "train.log"
+        pose_minutes = max(plan.min_train_minutes, (train_until - time.monotonic()) / 60.0)
+        pose_job = multiprocessing.get_context("spawn").Process(
+            target=_train_pose, args=(pose_log, data_dir, pose_run, plan.pose_preset, pose_minutes, device,
+                                      plan.pose_overrides, seed))
+        pose_job.start()
+        print(f"[demo] stage-1 training ({POSE_METHOD}, {pose_minutes:.1f} min) in the background, log: {pose_log}",
+              flush=True)
+    torch.set_num_threads(1)
 
     # The target person dances a training clip the pose model has seen; the held-out song is new to both.
     target_dir = out / "target"
@@ -139,11 +177,21 @@ def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, d
     step("synthetic target video")
 
     video_run = out / "runs" / "video"
-    if not (video_run / "latest.json").is_file():
-        video_minutes = max(plan.min_video_minutes, (deadline - time.monotonic()) / 60.0 - plan.finish_minutes)
-        train_video(target_video, video_run, "small", TrainOptions(minutes=video_minutes),
-                    poses=target_poses, device=device)
-    step("stage-2 training")
+    try:
+        if not (video_run / "latest.json").is_file():
+            video_minutes = max(plan.min_train_minutes, (train_until - time.monotonic()) / 60.0)
+            train_video(target_video, video_run, "small", TrainOptions(minutes=video_minutes),
+                        poses=target_poses, device=device)
+        step("stage-2 training")
+        if pose_job is not None:
+            pose_job.join()
+            if pose_job.exitcode != 0:
+                raise DancesynthError(f"Stage-1 training failed: {_last_error(pose_log)} (log: {pose_log}).")
+        step("stage-1 training (background)")
+    finally:
+        if pose_job is not None and pose_job.is_alive():
+            pose_job.terminate()
+            pose_job.join()
 
     clip = liveliest(dataset, dataset.clips("test"))
     song = data_dir / clip.audio

@@ -13,7 +13,7 @@ from stage1_pose.media import probe_streams  # noqa: E402
 
 # The demo's own steps at toy sizes: 6 songs of 12 s, a 4-s target video, a 3-s dance.
 TOY = DemoPlan(clips=6, clip_seconds=12.0, target_seconds=4.0, target_size=128, dance_seconds=3.0,
-               finish_minutes=0.0, min_video_minutes=0.1, pose_overrides={"window_frames": 90, "batch_size": 4})
+               finish_minutes=0.0, min_train_minutes=0.1, pose_overrides={"window_frames": 90, "batch_size": 4})
 
 
 def test_demo_writes_a_dance_with_the_song_summary_and_pictures_within_its_budget(tmp_path):
