@@ -52,7 +52,7 @@ class DemoPlan:
     clips: int = 40
     clip_seconds: float = 60.0
     pose_preset: str = "small-nocomp"
-    finish_minutes: float = 2.5
+    finish_minutes: float = 3.0
     min_train_minutes: float = 0.5
     target_seconds: float = 60.0
     target_size: int = 512
