@@ -25,8 +25,9 @@ feet and face points. Audio is ``[B, T, 28]`` standardised ``dancing2music`` fea
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 import torch
@@ -63,7 +64,8 @@ class Dancing2MusicConfig:
     Schedule: ``decomp_epochs`` epochs of decomposition, then composition until ``epochs``; ``composition``
     False is the paper's "w/o L_comp" ablation (units' movement codes drawn from the DU-VAE prior, no MM-GAN).
     Test time: units whose motion is below ``redraw_motion`` times the real units' mean motion are drawn again,
-    up to ``redraw_tries`` draws (the authors' code redraws until motion exceeds a threshold; 0 switches it off).
+    up to ``redraw_tries`` draws (the authors' code redraws until motion exceeds a threshold); ``redraw_motion`` 0
+    switches redrawing off.
     """
 
     feature_dim: int = 28
@@ -350,6 +352,12 @@ class Dancing2MusicMethod(Stage1Method):
         # Optimisation steps done in each phase, so generation knows whether the MM-GAN has trained.
         self.register_buffer("phase_steps", torch.zeros(len(PHASES), dtype=torch.int64))
 
+    def load_state_dict(self, state_dict: Mapping[str, Any], strict: bool = True, assign: bool = False) -> Any:
+        # Runs saved before the redraw threshold existed load with it at 0: they generate without redraws.
+        state = dict(state_dict)
+        state.setdefault("unit_motion", torch.tensor(0.0))
+        return super().load_state_dict(state, strict, assign)
+
     def _groups(self) -> dict[str, list[nn.Module]]:
         return {"vae": [self.e_ini, self.e_mov, self.g_uni], "style": [self.style],
                 "gen": [self.e_mtd, self.g_dan, self.e_std, self.e_sty], "disc": [self.d_mov, self.d_dan]}
@@ -529,7 +537,7 @@ class Dancing2MusicMethod(Stage1Method):
         groups = []
         for start in range(0, len(audio_units), size):
             best, best_motion = None, -1.0
-            for _ in range(max(1, c.redraw_tries)):
+            for _ in range(c.redraw_tries):
                 codes = self.movement_codes(audio_units[start:start + size], generator)
                 units = self._decode_group(z_ini, anchor, codes)
                 motion = unit_motion(units)

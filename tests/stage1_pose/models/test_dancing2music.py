@@ -169,6 +169,13 @@ def test_real_unit_motion_is_learned_and_still_draws_are_redrawn(trained):
         replace(TINY, redraw_tries=0)
 
 
+def test_runs_saved_before_the_redraw_threshold_load_without_redraws(trained):
+    state = {k: v for k, v in trained.state_dict().items() if k != "unit_motion"}
+    older = Dancing2MusicMethod(TINY)
+    older.load_state_dict(state)
+    assert float(older.unit_motion) == 0.0
+
+
 def test_model_before_composition_generates_from_the_prior(trained):
     fresh = Dancing2MusicMethod(TINY).eval()
     assert not fresh.composes and trained.composes
