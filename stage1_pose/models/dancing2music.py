@@ -168,20 +168,18 @@ def shift_root(units: torch.Tensor, shift: torch.Tensor) -> torch.Tensor:
     return out
 
 
-def absolute_positions(poses: np.ndarray) -> np.ndarray:
-    """``[T, 25, 2]`` model coordinates -> every joint's position relative to the canvas centre (model units)."""
-    out = poses + poses[:, ROOT:ROOT + 1]
-    out[:, ROOT] = poses[:, ROOT]
+def absolute_positions(poses: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
+    """``[..., 25, 2]`` model coordinates (array or tensor) -> every joint's position relative to the canvas
+    centre (model units)."""
+    out = poses + poses[..., ROOT:ROOT + 1, :]
+    out[..., ROOT, :] = poses[..., ROOT, :]
     return out
 
 
 def unit_motion(units: torch.Tensor) -> float:
     """Mean joint displacement per frame (model units, joints placed absolutely) of ``[n, 32, 50]`` units."""
-    xy = units.reshape(*units.shape[:2], NUM_JOINTS, 2)
-    offset = torch.ones(NUM_JOINTS, 1, device=xy.device)
-    offset[ROOT] = 0.0
-    xy = xy + xy[:, :, ROOT:ROOT + 1] * offset
-    return float((xy[:, 1:] - xy[:, :-1]).detach().norm(dim=-1).mean()) if units.shape[1] > 1 else 0.0
+    xy = absolute_positions(units.detach().reshape(*units.shape[:2], NUM_JOINTS, 2))
+    return float((xy[:, 1:] - xy[:, :-1]).norm(dim=-1).mean()) if units.shape[1] > 1 else 0.0
 
 
 class InitialPoseEncoder(nn.Module):
