@@ -9,9 +9,9 @@ compares them with the real dances:
   (kinematic beats per music beat), Lee et al. 2019 Sec. 4, with the music beats tracked on the audio
   (:func:`stage1_pose.audio.beat_times`) for real and generated dances alike.
 
-Each run is measured twice: through :func:`stage1_pose.generate.generate_dance` as users get it (the song's
-tracked beats go to the model's beat warper) and with the features alone (the model then finds beats on their
-loudness channel).
+Each run is measured through :func:`stage1_pose.generate.generate_dance` as users get it (the song's tracked
+beats go to the model's beat warper), with the features alone (the model then finds beats on their loudness
+channel), and with the paper's warper (normalised unit beats on the music beats, no accent) in place of the run's.
 
 Usage: python benchmarks/bench_dancing2music.py --data DATA_DIR --model RUN_DIR [--model RUN_DIR2 ...]
        [--seconds 60] [--seeds 3] [--device auto]
@@ -20,6 +20,7 @@ Usage: python benchmarks/bench_dancing2music.py --data DATA_DIR --model RUN_DIR 
 from __future__ import annotations
 
 import argparse
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -70,7 +71,10 @@ def main() -> None:
     rows = [("real (test)", [s[1] for s in songs], [s[3] for s in songs])]
     for run in args.model:
         model = load_pose_model(run, args.device)
-        for label, tracked in (("feature beats", False), ("tracked beats", True)):
+        own = model.method.config
+        for label, tracked, config in (("tracked beats", True, own), ("feature beats", False, own),
+                                       ("paper warper", True, replace(own, warp_stretch=1.0, beat_accent=0.0))):
+            model.method.config = config
             dances, beats = [], []
             for _, _, samples, music in songs:
                 features = audio.extract_features(samples, ds.sample_rate, model.feature_kind, model.fps)

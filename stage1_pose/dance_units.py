@@ -35,6 +35,28 @@ def sample_frames(x: np.ndarray, positions: np.ndarray) -> np.ndarray:
     return ((1.0 - w) * x[lo] + w * x[hi]).astype(x.dtype, copy=False)
 
 
+def sample_frames_smooth(x: np.ndarray, positions: np.ndarray) -> np.ndarray:
+    """Catmull-Rom interpolation of ``x`` (``[T, ...]``) at fractional frame ``positions``, ``[N, ...]``.
+
+    Unlike :func:`sample_frames` the velocity stays continuous across source frames: resampling with linear
+    pieces makes the speed jump at every source frame, and those jumps read as kinematic beats of their own
+    when a dance is slowed down. Positions outside ``[0, T - 1]`` are clamped.
+    """
+    x = np.asarray(x)
+    if len(x) < 2:
+        return sample_frames(x, positions)
+    last = len(x) - 1
+    positions = np.clip(np.asarray(positions, dtype=np.float64), 0.0, last)
+    # Straight-line ghost frames before the first and after the last keep the end velocities.
+    padded = np.concatenate([2 * x[:1] - x[1:2], x, 2 * x[-1:] - x[-2:-1]])
+    i1 = np.minimum(np.floor(positions).astype(np.int64), last - 1)
+    shape = (-1,) + (1,) * (x.ndim - 1)
+    t = (positions - i1).reshape(shape)
+    p0, p1, p2, p3 = padded[i1], padded[i1 + 1], padded[i1 + 2], padded[i1 + 3]
+    out = p1 + 0.5 * t * ((p2 - p0) + t * ((2 * p0 - 5 * p1 + 4 * p2 - p3) + t * (3 * (p1 - p2) + p3 - p0)))
+    return out.astype(x.dtype, copy=False)
+
+
 def unit_positions(beat_frames: np.ndarray) -> np.ndarray:
     """Source frame positions ``[32]`` of a unit spanning 5 consecutive kinematic beats (frame indices).
 
@@ -121,24 +143,85 @@ def units_needed(grid: np.ndarray) -> int:
     return int(np.ceil((len(grid) - 1) / BEATS_PER_UNIT))
 
 
-def warp_units(units: np.ndarray, grid: np.ndarray, num_frames: int) -> np.ndarray:
+def align_beats(kinematic: np.ndarray, num_beats: int, max_stretch: float, margin: float = 1.5) -> np.ndarray:
+    """Positions ``[num_beats]`` in the concatenated generated units (unit frames) to put on the song's dance
+    beats, so that the units' kinematic beats land on music beats.
+
+    A decoded unit moves with its kinematic beats near, not exactly at, the normalised frames ``8k``, and now
+    and then between them. Dynamic programming picks one anchor per dance beat, each either a ``kinematic`` beat
+    (frame indices of the concatenated units, :func:`stage1_pose.kinematic_beats.kinematic_beats`) or the
+    normalised frame, within one beat interval (8 frames) of ``8k``, minimising the kinematic beats left more than
+    ``margin`` unit frames inside a beat interval (the warper would put them between music beats). Consecutive
+    anchors stay between ``8 / max_stretch`` and ``8 * max_stretch`` frames apart, which bounds how much the
+    warper speeds up or slows down the units; ties go to anchors on kinematic beats and even tempo.
+    ``max_stretch`` 1 returns the normalised frames ``0, 8, 16, ...``.
+    """
+    if max_stretch < 1:
+        raise ValueError(f"max_stretch must be at least 1, got {max_stretch}")
+    nominal = np.arange(num_beats) * float(BEAT_SPACING)
+    kinematic = np.unique(np.asarray(kinematic, dtype=np.float64))
+    if max_stretch == 1 or len(kinematic) == 0 or num_beats < 2:
+        return nominal
+    lo, hi = BEAT_SPACING / max_stretch, BEAT_SPACING * max_stretch
+    candidates, node_costs = [], []
+    for centre in nominal:
+        near = kinematic[np.abs(kinematic - centre) <= BEAT_SPACING]
+        candidates.append(np.concatenate([[centre], near]))
+        node_costs.append(np.concatenate([[0.1], np.zeros(len(near))]))
+    cost = node_costs[0]
+    back = []
+    for k in range(1, num_beats):
+        a, b = candidates[k - 1][:, None], candidates[k][None, :]
+        length = b - a
+        interior = (np.searchsorted(kinematic, b - margin, side="left")
+                    - np.searchsorted(kinematic, a + margin, side="right")).clip(min=0)
+        step = interior + 0.05 * np.abs(np.log(np.maximum(length, 1e-9) / BEAT_SPACING))
+        step = np.where((length >= lo) & (length <= hi), step, np.inf)
+        total = cost[:, None] + step
+        back.append(total.argmin(axis=0))
+        cost = total.min(axis=0) + node_costs[k]
+    path = [int(cost.argmin())]
+    for pointers in reversed(back):
+        path.append(int(pointers[path[-1]]))
+    return np.array([candidates[k][i] for k, i in enumerate(reversed(path))])
+
+
+def warp_units(units: np.ndarray, grid: np.ndarray, num_frames: int,
+               unit_beats: np.ndarray | None = None, accent: float = 0.0) -> np.ndarray:
     """The beat warper: lay generated units on the song's beat grid, ``[num_frames, ...]``.
 
     Args:
-        units: ``[n, 32, ...]`` consecutive units (their beats at unit frames 0, 8, 16, 24); n must be at least
-            :func:`units_needed` of ``grid``.
+        units: ``[n, 32, ...]`` consecutive units; n must be at least :func:`units_needed` of ``grid``.
         grid: dance beat frame positions from :func:`beat_grid`.
         num_frames: output length in frames.
+        unit_beats: ``[len(grid)]`` increasing positions of the units' beats in frames of the concatenated units
+            (:func:`align_beats`); by default the normalised frames ``0, 8, 16, ...``.
 
-    Output frame ``f`` shows unit-sequence position ``q(f)``, where ``q`` is piecewise linear through
-    ``(grid[k], 8k)``: the units' k-th beat lands on ``grid[k]``, stretched or compressed in between.
+        accent: in ``[0, 1)``; how much the units slow down right after each beat and speed up into the next.
+
+    Output frame ``f`` shows unit-sequence position ``q(f)`` with ``q(grid[k]) = unit_beats[k]``: the units'
+    k-th beat lands on ``grid[k]``, stretched or compressed in between. At a fraction ``tau`` of a beat interval
+    ``q`` has covered ``tau + accent * tau * (tau - 1)`` of it: piecewise linear for ``accent`` 0 (the paper's
+    warper); otherwise the speed falls from ``1 + accent`` to ``1 - accent`` times the interval's mean speed at
+    every beat, so the body decelerates on the music beat, which is what a kinematic beat is.
     """
+    if not 0 <= accent < 1:
+        raise ValueError(f"accent must be in [0, 1), got {accent}")
     units = np.asarray(units)
     if units.shape[0] < units_needed(grid):
         raise ValueError(f"{units_needed(grid)} units are needed for this beat grid, got {units.shape[0]}")
+    if unit_beats is None:
+        unit_beats = np.arange(len(grid)) * float(BEAT_SPACING)
+    unit_beats = np.asarray(unit_beats, dtype=np.float64)
+    if len(unit_beats) != len(grid) or np.any(np.diff(unit_beats) <= 0):
+        raise ValueError(f"unit_beats must be {len(grid)} increasing positions, got {np.asarray(unit_beats)}")
     flat = units.reshape((-1,) + units.shape[2:])
-    q = np.interp(np.arange(num_frames), grid, np.arange(len(grid)) * float(BEAT_SPACING))
-    return sample_frames(flat, q)
+    frames = np.arange(num_frames, dtype=np.float64)
+    k = np.clip(np.searchsorted(grid, frames, side="right") - 1, 0, len(grid) - 2)
+    tau = np.clip((frames - grid[k]) / (grid[k + 1] - grid[k]), 0.0, 1.0)
+    tau = tau + accent * tau * (tau - 1.0)
+    q = unit_beats[k] + (unit_beats[k + 1] - unit_beats[k]) * tau
+    return sample_frames_smooth(flat, q)
 
 
 def beats_from_features(features: np.ndarray, fps: float) -> np.ndarray:

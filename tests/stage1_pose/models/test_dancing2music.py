@@ -89,6 +89,12 @@ def test_paper_preset_sizes_and_ablation():
     assert nocomp.phase(10 ** 6) == "decomposition"
     with pytest.raises(DancesynthError, match="Unknown dancing2music preset"):
         Dancing2MusicConfig.preset("huge")
+    # The paper's warper puts the normalised unit beats on the music beats; the CPU preset also aligns and accents.
+    assert (paper.warp_stretch, paper.beat_accent) == (1.0, 0.0)
+    small = Dancing2MusicConfig.preset("small-nocomp")
+    assert small.warp_stretch > 1 and 0 < small.beat_accent < 1
+    with pytest.raises(DancesynthError, match="beat_accent"):
+        replace(TINY, beat_accent=1.0)
 
 
 def test_shift_moves_only_the_root():
