@@ -1,7 +1,7 @@
 """Peak memory and wall time of `dancesynth dance` for a 30-s and a 3-min song (fresh process each).
 
 Usage: python benchmarks/bench_dance.py --pose-model RUN --video-model RUN   (e.g. the runs `make demo` wrote:
-demo_output/runs/pose/dance_revolution and demo_output/runs/video). Memory must not grow with song length:
+demo_output/runs/pose and demo_output/runs/video). Memory must not grow with song length:
 frames stream to the encoder, so only the song samples and the pose array scale with duration.
 """
 

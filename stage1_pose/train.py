@@ -54,7 +54,9 @@ class TrainerConfig:
     method config's values; learning rates live in the method config. ``stride_frames`` is the hop between
     training windows (default half a window). ``checkpoint_every`` is in optimizer steps (a checkpoint is
     also written at the end and when ``minutes`` run out); ``preview_every`` in epochs (0 = never);
-    ``preview_seconds`` the length of the preview dance in seconds. ``minutes`` bounds this invocation's
+    ``preview_seconds`` the length of the preview dance in seconds; a due preview is skipped when the last one
+    (or the start of this invocation) is less than ``preview_gap_minutes`` ago, so methods with epochs of a few
+    seconds do not spend a third of their time drawing previews. ``minutes`` bounds this invocation's
     wall-clock time.
     """
 
@@ -65,6 +67,7 @@ class TrainerConfig:
     checkpoint_every: int = 200
     preview_every: int = 10
     preview_seconds: float = 20.0
+    preview_gap_minutes: float = 2.0
     seed: int = 0
     num_workers: int = 0
     minutes: float | None = None
@@ -225,6 +228,7 @@ class Trainer:
         opts = self.options
         self.tensorboard = _tensorboard(self.run_dir) if self.rank == 0 else None
         deadline = None if opts.minutes is None else time.monotonic() + opts.minutes * 60
+        last_preview = time.monotonic()
         self.method.train()
         stopped = False
         while self.epoch < self.epochs and not stopped:
@@ -256,8 +260,10 @@ class Trainer:
             if self.rank == 0:
                 self.log_epoch(time.monotonic() - started)
             self.epoch, self.batch_index, self.sums, self.count = self.epoch + 1, 0, {}, 0
-            if opts.preview_every and self.epoch % opts.preview_every == 0 and self.rank == 0:
+            if (opts.preview_every and self.epoch % opts.preview_every == 0 and self.rank == 0
+                    and time.monotonic() - last_preview >= opts.preview_gap_minutes * 60):
                 self.preview()
+                last_preview = time.monotonic()
         self.save()
         if self.tensorboard is not None:
             self.tensorboard.close()

@@ -14,6 +14,7 @@ Train a stage-1 method on DATA (a folder made by `dancesynth make-dataset`) into
   RUN_DIR/latest.training.pt                  optimizer/RNG/data position for --resume
   RUN_DIR/metrics.csv, loss.png               per-epoch mean of every loss the method logs
   RUN_DIR/previews/epoch_XXXX.mp4             a generated dance for a validation song every --preview-every epochs
+                                              (at most one per --preview-gap minutes)
 
 --resume continues a stopped or killed run exactly (same final weights as an uninterrupted run); with a
 larger --epochs it extends a finished one. Presets: small (CPU, minutes) and paper (published settings);
@@ -42,6 +43,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--resume", action="store_true", help="continue the run in RUN_DIR exactly")
     parser.add_argument("--checkpoint-every", type=int, default=200, metavar="STEPS")
     parser.add_argument("--preview-every", type=int, default=10, metavar="EPOCHS", help="0 = no previews")
+    parser.add_argument("--preview-gap", type=float, default=2.0, metavar="MINUTES",
+                        help="skip a due preview when the last one is less than this long ago (default 2)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--workers", type=int, default=0, help="data loader worker processes")
     parser.add_argument("--device", default="auto", help="auto, cpu or cuda")
@@ -64,7 +67,7 @@ def run(args: argparse.Namespace) -> None:
 
     options = TrainerConfig(batch_size=args.batch_size, window_frames=args.window,
                             checkpoint_every=args.checkpoint_every, preview_every=args.preview_every,
-                            seed=args.seed, num_workers=args.workers)
+                            preview_gap_minutes=args.preview_gap, seed=args.seed, num_workers=args.workers)
     meta = train(args.method, args.data, args.out, preset=args.preset, epochs=args.epochs, resume=args.resume,
                  device=args.device, overrides=_overrides(args.overrides), minutes=args.minutes, options=options)
     print(f"saved {args.out}/latest.safetensors: {meta['method']}, epoch {meta['epoch']}/{meta['epochs']}, "

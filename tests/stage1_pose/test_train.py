@@ -32,7 +32,7 @@ def test_data_order_depends_only_on_seed_and_epoch():
 
 def test_run_folder_outputs(tiny_stage1_dataset, tmp_path):
     meta = train("dance_revolution", tiny_stage1_dataset, tmp_path / "run", overrides=TINY_DR, epochs=2,
-                 options=TrainerConfig(preview_every=2, preview_seconds=2))
+                 options=TrainerConfig(preview_every=2, preview_seconds=2, preview_gap_minutes=0))
     run = tmp_path / "run"
     assert meta["epoch"] == 2 and meta["curriculum"]["p"] == 1 and meta["feature_kind"] == "dance_revolution"
     assert len(meta["feature_stats"]["mean"]) == 438 and meta["canvas"] == [1280, 720] and meta["fps"] == 15.0
