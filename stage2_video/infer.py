@@ -11,7 +11,7 @@ from __future__ import annotations
 import copy
 import os
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -43,19 +43,49 @@ class _ChannelsLast(nn.Module):
         return self.inner(x.contiguous(memory_format=torch.channels_last))
 
 
+class OpenVINOGenerator:
+    """The generator compiled by OpenVINO's CPU plugin for one input size, float32 throughout.
+
+    OpenVINO fuses each convolution with its instance norm and activation and keeps activations in blocked
+    layouts between layers, which PyTorch's eager and TorchScript paths do not; the output equals the plain
+    forward up to float rounding (``benchmarks/bench_render.py`` measures both).
+    """
+
+    def __init__(self, generator: nn.Module, in_channels: int, width: int, height: int) -> None:
+        import openvino
+
+        shape = (1, in_channels, height, width)
+        with warnings.catch_warnings():
+            # The converter traces the network and warns about instance norm's shape checks, fixed here.
+            warnings.simplefilter("ignore")
+            model = openvino.convert_model(copy.deepcopy(generator).eval(), example_input=torch.zeros(shape),
+                                           input=[shape])
+        compiled = openvino.Core().compile_model(model, "CPU", {
+            "INFERENCE_PRECISION_HINT": "f32", "PERFORMANCE_HINT": "LATENCY",
+            "INFERENCE_NUM_THREADS": torch.get_num_threads()})
+        self._request = compiled.create_infer_request()
+
+    def __call__(self, x: torch.Tensor) -> torch.Tensor:
+        """``[1, C, H, W]`` float32 CPU tensor -> ``[1, 3, H, W]`` frame in [-1, 1]."""
+        # The result buffer belongs to the request and is overwritten by the next call.
+        return torch.from_numpy(self._request.infer([x.numpy()])[0].copy())
+
+
 def optimize_generator(generator: nn.Module, in_channels: int, width: int, height: int,
-                       device: torch.device) -> nn.Module:
+                       device: torch.device) -> Callable[[torch.Tensor], torch.Tensor]:
     """An inference-only copy of ``generator`` for ``[1, in_channels, height, width]`` inputs.
 
-    Channels-last layout, traced and frozen by TorchScript with oneDNN's inference passes (weights
-    pre-packed, conv + ReLU fused). Float32 throughout, so the output equals the plain forward up to
-    rounding (``benchmarks/bench_render.py`` measures the difference and the speed-up).
+    On CPU the network compiled by OpenVINO (:class:`OpenVINOGenerator`); on a GPU a channels-last copy traced
+    and frozen by TorchScript. Float32 throughout, so the output equals the plain forward up to rounding
+    (``benchmarks/bench_render.py`` measures the difference and the speed-up).
     """
+    if device.type == "cpu":
+        return OpenVINOGenerator(generator, in_channels, width, height)
     wrapped = _ChannelsLast(copy.deepcopy(generator).eval().to(device, memory_format=torch.channels_last))
     example = torch.zeros(1, in_channels, height, width, device=device)
     with torch.no_grad(), warnings.catch_warnings():
         # The tracer flags instance norm's shape checks (fixed for a fixed input size) and TorchScript is
-        # deprecated in favour of torch.compile, which measured slower here on CPU.
+        # deprecated in favour of torch.compile.
         warnings.simplefilter("ignore")
         return torch.jit.optimize_for_inference(torch.jit.trace(wrapped, example))
 
@@ -64,7 +94,7 @@ def optimize_generator(generator: nn.Module, in_channels: int, width: int, heigh
 class AppearanceModel:
     """A trained generator with what rendering needs from its run folder."""
 
-    generator: nn.Module
+    generator: Callable[[torch.Tensor], torch.Tensor]
     config: Pix2PixHDConfig
     framing: Framing
     target_stats: BodyStats | None
