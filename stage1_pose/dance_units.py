@@ -196,7 +196,6 @@ def warp_units(units: np.ndarray, grid: np.ndarray, num_frames: int,
         num_frames: output length in frames.
         unit_beats: ``[len(grid)]`` increasing positions of the units' beats in frames of the concatenated units
             (:func:`align_beats`); by default the normalised frames ``0, 8, 16, ...``.
-
         accent: in ``[0, 1)``; how much the units slow down right after each beat and speed up into the next.
 
     Output frame ``f`` shows unit-sequence position ``q(f)`` with ``q(grid[k]) = unit_beats[k]``: the units'
@@ -214,7 +213,7 @@ def warp_units(units: np.ndarray, grid: np.ndarray, num_frames: int,
         unit_beats = np.arange(len(grid)) * float(BEAT_SPACING)
     unit_beats = np.asarray(unit_beats, dtype=np.float64)
     if len(unit_beats) != len(grid) or np.any(np.diff(unit_beats) <= 0):
-        raise ValueError(f"unit_beats must be {len(grid)} increasing positions, got {np.asarray(unit_beats)}")
+        raise ValueError(f"unit_beats must be {len(grid)} increasing positions, got {unit_beats}")
     flat = units.reshape((-1,) + units.shape[2:])
     frames = np.arange(num_frames, dtype=np.float64)
     k = np.clip(np.searchsorted(grid, frames, side="right") - 1, 0, len(grid) - 2)
