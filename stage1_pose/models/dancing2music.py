@@ -595,7 +595,9 @@ class Dancing2MusicMethod(Stage1Method):
             spans = np.stack([full[4 * k:4 * k + 5] for k in range(n)])
             audio_units = torch.from_numpy(du.cut_units(feats, spans)).to(audio.device)
             units = self.dance_units(audio_units, generator).cpu().numpy()
-            moves = kinematic_beats(absolute_positions(units.reshape(-1, NUM_JOINTS, 2)), self.config.fps)
-            unit_beats = du.align_beats(moves, len(grid), self.config.warp_stretch)
+            unit_beats = None  # the paper's warper: the normalised beat frames
+            if self.config.warp_stretch > 1:
+                moves = kinematic_beats(absolute_positions(units.reshape(-1, NUM_JOINTS, 2)), self.config.fps)
+                unit_beats = du.align_beats(moves, len(grid), self.config.warp_stretch)
             out.append(torch.from_numpy(du.warp_units(units, grid, t, unit_beats, self.config.beat_accent)))
         return torch.stack(out).to(audio.device)
