@@ -56,8 +56,9 @@ class TrainerConfig:
     also written at the end and when ``minutes`` run out); ``preview_every`` in epochs (0 = never);
     ``preview_seconds`` the length of the preview dance in seconds; a due preview is skipped when the last one
     (or the start of this invocation) is less than ``preview_gap_minutes`` ago, so methods with epochs of a few
-    seconds do not spend a third of their time drawing previews. ``minutes`` bounds this invocation's
-    wall-clock time.
+    seconds do not spend a third of their time drawing previews. ``loss.png`` is redrawn after an epoch when
+    the last drawing is at least ``plot_gap_seconds`` old, and at the end (drawing a dozen panels takes 1-2 s,
+    as long as a Dancing2Music epoch). ``minutes`` bounds this invocation's wall-clock time.
     """
 
     epochs: int | None = None
@@ -68,6 +69,7 @@ class TrainerConfig:
     preview_every: int = 10
     preview_seconds: float = 20.0
     preview_gap_minutes: float = 2.0
+    plot_gap_seconds: float = 60.0
     seed: int = 0
     num_workers: int = 0
     minutes: float | None = None
@@ -202,7 +204,12 @@ class Trainer:
             for k, v in row.items():
                 if k not in ("epoch", "step"):
                     self.tensorboard.add_scalar(k, v, self.epoch)
-        plot_metrics(path, self.run_dir / "loss.png")
+
+    def plot(self) -> None:
+        """Redraw ``loss.png`` from ``metrics.csv`` (nothing before the first logged epoch)."""
+        path = self.run_dir / "metrics.csv"
+        if path.is_file():
+            plot_metrics(path, self.run_dir / "loss.png")
 
     def preview(self) -> None:
         from stage1_pose.draw import write_skeleton_video
@@ -228,7 +235,7 @@ class Trainer:
         opts = self.options
         self.tensorboard = _tensorboard(self.run_dir) if self.rank == 0 else None
         deadline = None if opts.minutes is None else time.monotonic() + opts.minutes * 60
-        last_preview = time.monotonic()
+        last_preview = last_plot = time.monotonic()
         self.method.train()
         stopped = False
         while self.epoch < self.epochs and not stopped:
@@ -259,12 +266,17 @@ class Trainer:
                 break
             if self.rank == 0:
                 self.log_epoch(time.monotonic() - started)
+                if time.monotonic() - last_plot >= opts.plot_gap_seconds:
+                    self.plot()
+                    last_plot = time.monotonic()
             self.epoch, self.batch_index, self.sums, self.count = self.epoch + 1, 0, {}, 0
             if (opts.preview_every and self.epoch % opts.preview_every == 0 and self.rank == 0
                     and time.monotonic() - last_preview >= opts.preview_gap_minutes * 60):
                 self.preview()
                 last_preview = time.monotonic()
         self.save()
+        if self.rank == 0:
+            self.plot()
         if self.tensorboard is not None:
             self.tensorboard.close()
         return self.meta()
@@ -325,7 +337,7 @@ def plot_metrics(csv_path: Path, png_path: Path) -> None:
     """Plot every column of ``metrics.csv`` against epoch into ``png_path`` (one panel per scalar)."""
     with open(csv_path, newline="") as f:
         rows = list(csv.DictReader(f))
-    keys = [k for k in rows[0] if k not in ("epoch", "step", "seconds")]
+    keys = [k for k in (rows[0] if rows else {}) if k not in ("epoch", "step", "seconds")]
     if not keys:
         return
     fig, axes = plt.subplots(len(keys), 1, figsize=(6, 2.2 * len(keys)), squeeze=False, sharex=True)

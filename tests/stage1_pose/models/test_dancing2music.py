@@ -205,7 +205,7 @@ def test_both_phases_train_through_the_shared_trainer(tiny_stage1_dataset, tmp_p
     data = tmp_path / "data"
     shutil.copytree(tiny_stage1_dataset, data)
     feats = data / "features" / "dancing2music"
-    feats.mkdir(parents=True)
+    feats.mkdir(parents=True, exist_ok=True)  # another test may have computed them in the shared dataset
     rng = np.random.default_rng(0)
     for clip in (data / "poses").glob("*.npz"):
         np.save(feats / f"{clip.stem}.npy", rng.standard_normal((120, 28)).astype(np.float32))
