@@ -435,7 +435,7 @@ class Dancing2MusicMethod(Stage1Method):
                  + F.l1_loss(self.g_uni.init_pose(z_ini), anchor))
         kl = kl_to_standard_normal(mu_i, lv_i) + kl_to_standard_normal(mu_m, lv_m)
         # A relative movement encoder subtracts the unit's first frame, which cancels a whole-unit shift exactly:
-        # its code for the shifted unit is the one just computed, so a second pass (a fifth of a training step)
+        # its code for the shifted unit is the one just computed, so a second pass (a tenth of a training step)
         # would only repeat it.
         if c.relative_movement:
             mov_shifted = (mu_m, lv_m)
