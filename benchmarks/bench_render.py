@@ -1,4 +1,5 @@
-"""Rendering speed of the appearance model on CPU: plain PyTorch forward vs the optimised (OpenVINO) renderer.
+"""Rendering speed of the appearance model on CPU: plain PyTorch forward vs the optimised renderer (Winograd
+residual blocks compiled by OpenVINO).
 
 For each preset and size, renders the same pose sequence twice through the full per-frame path (label map,
 generator conditioned on the previous frame, uint8 frame) with the plain eval-mode forward (the reference)

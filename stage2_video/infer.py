@@ -30,6 +30,7 @@ from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig
 from stage2_video.normalize import BodyStats, fit_normalization
 from stage2_video.render import Framing, label_map
 from stage2_video.train import KIND
+from stage2_video.winograd import winograd_generator
 
 
 class _ChannelsLast(nn.Module):
@@ -46,9 +47,10 @@ class _ChannelsLast(nn.Module):
 class OpenVINOGenerator:
     """The generator compiled by OpenVINO's CPU plugin for one input size, float32 throughout.
 
-    OpenVINO fuses each convolution with its instance norm and activation and keeps activations in blocked
-    layouts between layers, which PyTorch's eager and TorchScript paths do not; the output equals the plain
-    forward up to float rounding (``benchmarks/bench_render.py`` measures both).
+    Its residual blocks are first rewritten with Winograd convolutions (:mod:`stage2_video.winograd`, a quarter
+    of the multiplies); OpenVINO then fuses the other convolutions with their instance norm and activation and
+    keeps activations in blocked layouts between layers, which PyTorch's eager and TorchScript paths do not.
+    The output equals the plain forward up to float rounding (``benchmarks/bench_render.py`` measures both).
     """
 
     def __init__(self, generator: nn.Module, in_channels: int, width: int, height: int) -> None:
@@ -58,8 +60,8 @@ class OpenVINOGenerator:
         with warnings.catch_warnings():
             # The converter traces the network and warns about instance norm's shape checks, fixed here.
             warnings.simplefilter("ignore")
-            model = openvino.convert_model(copy.deepcopy(generator).eval(), example_input=torch.zeros(shape),
-                                           input=[shape])
+            model = openvino.convert_model(winograd_generator(generator, in_channels, width, height),
+                                           example_input=torch.zeros(shape), input=[shape])
         compiled = openvino.Core().compile_model(model, "CPU", {
             "INFERENCE_PRECISION_HINT": "f32", "PERFORMANCE_HINT": "LATENCY",
             "INFERENCE_NUM_THREADS": torch.get_num_threads()})

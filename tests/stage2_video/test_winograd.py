@@ -1,0 +1,61 @@
+import pytest
+import torch
+from torch import nn
+
+from stage2_video.models.pix2pixhd import Pix2PixHD, ResnetBlock, preset
+from stage2_video.winograd import WinogradConv3x3, WinogradResnetStack, winograd_generator
+
+
+def _randomise(module: nn.Module) -> nn.Module:
+    torch.manual_seed(0)
+    for p in module.parameters():
+        nn.init.normal_(p, std=0.2)
+    return module.eval()
+
+
+def test_winograd_convolution_equals_padded_direct_convolution():
+    conv = _randomise(nn.Conv2d(5, 7, 3))
+    x = torch.randn(1, 5, 12, 8)
+    with torch.no_grad():
+        ref = conv(nn.functional.pad(x, (1, 1, 1, 1), mode="reflect"))
+        out = WinogradConv3x3(conv, 12, 8)(x.reshape(5, 96).t())
+    assert torch.allclose(out.t().reshape(1, 7, 12, 8), ref, atol=1e-4 * ref.abs().max())
+
+
+def test_winograd_stack_computes_the_same_residual_blocks():
+    blocks = [_randomise(ResnetBlock(16)) for _ in range(3)]
+    x = torch.randn(1, 16, 8, 20)
+    with torch.no_grad():
+        ref = nn.Sequential(*blocks)(x)
+        out = WinogradResnetStack(blocks, 8, 20)(x)
+    assert torch.allclose(out, ref, atol=1e-4 * ref.abs().max())
+
+
+@pytest.mark.parametrize("size, rewritten", [(64, True), (40, False)])
+def test_generator_rewrite_keeps_the_output(size, rewritten):
+    config = preset("small", width=size, height=size, ngf=4, n_downsample=2, n_blocks=2)
+    generator = _randomise(Pix2PixHD(config).generator)
+    fast = winograd_generator(generator, 6, size, size)
+    # 64 px -> 16 px blocks (tiles of 4 fit); 40 px -> 10 px blocks stay direct.
+    assert any(isinstance(m, WinogradResnetStack) for m in fast.modules()) == rewritten
+    assert any(isinstance(m, ResnetBlock) for m in fast.modules()) != rewritten
+    x = torch.rand(1, 6, size, size) * 2 - 1
+    with torch.no_grad():
+        assert torch.allclose(fast(x), generator(x), atol=1e-4)
+
+
+def test_blocks_over_the_weight_budget_stay_direct():
+    config = preset("small", width=32, height=32, ngf=4, n_downsample=1, n_blocks=1)
+    generator = Pix2PixHD(config).generator.eval()
+    fast = winograd_generator(generator, 6, 32, 32, max_weight_bytes=0)
+    assert not any(isinstance(m, WinogradResnetStack) for m in fast.modules())
+
+
+def test_local_enhancer_blocks_are_rewritten_too():
+    config = preset("paper", width=64, height=32, ngf=4, n_downsample=1, n_blocks=2, n_blocks_local=1)
+    generator = _randomise(Pix2PixHD(config).generator)
+    fast = winograd_generator(generator, 6, 64, 32)
+    assert sum(isinstance(m, WinogradResnetStack) for m in fast.modules()) == 2
+    x = torch.rand(1, 6, 32, 64) * 2 - 1
+    with torch.no_grad():
+        assert torch.allclose(fast(x), generator(x), atol=1e-4)
