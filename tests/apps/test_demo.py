@@ -29,8 +29,9 @@ def test_demo_writes_a_dance_with_the_song_summary_and_pictures_within_its_budge
     summary = (tmp_path / "demo" / "summary.md").read_text()
     assert "beat hit rate" in summary and "SSIM" in summary and "| real dance |" in summary
     assert (tmp_path / "demo" / "frames.png").stat().st_size > 0
-    # Training steps share the budget; only the fixed dance and summary steps may run past it.
-    assert elapsed < 1.2 * 60 + 60, elapsed
+    # Training steps share the budget; only the fixed dance and summary steps may run past it (the dance step
+    # includes compiling the renderer, ~10 s on one core).
+    assert elapsed < 1.2 * 60 + 90, elapsed
 
     again = time.monotonic()
     run_demo(tmp_path / "demo", minutes=1.2, device="cpu", plan=TOY)
