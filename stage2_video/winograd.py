@@ -5,8 +5,9 @@ pair; in the Winograd domain (Lavin & Gray 2016, "Fast Algorithms for Convolutio
 costs 36: each 6 x 6 input tile ``d`` and each filter ``g`` are transformed (``B^T d B``, ``G g G^T``),
 multiplied elementwise, which over channels is 36 independent matrix products, and transformed back
 (``A^T m A``). The small generator spends 80 % of its multiplies in nine 256-channel residual blocks at 1/8
-of the image size; there this computes the same function in a third of the time, with float32 rounding
-differences of about 1e-5 of the activations.
+of the image size; compiled by OpenVINO, those blocks take about 60 % of the time of its direct convolutions
+(53 vs 90 ms for three 256-channel blocks at 32 x 32), with float32 rounding differences of about 1e-5 of the
+activations.
 
 Inside a run of residual blocks the activations are kept as ``[H * W, C]`` rows (channels last), so that
 cutting the padded image into overlapping tiles and putting the output tiles back in place are both row
@@ -159,7 +160,7 @@ def _merge_runs(layers: list[nn.Module], sizes: dict[int, tuple[int, int]],
         if run:
             height, width = sizes[id(run[0])]
             weight_bytes = sum(4 * 4 * p.numel() for block in run for p in block.parameters() if p.dim() == 4)
-            channels = next(layer for layer in run[0].block if isinstance(layer, nn.Conv2d)).out_channels
+            channels = next(m for m in run[0].block if isinstance(m, nn.Conv2d)).out_channels
             fits = (height % TILE == 0 and width % TILE == 0 and weight_bytes <= max_weight_bytes
                     and channels >= min_channels)
             out += [WinogradResnetStack(run, height, width)] if fits else run
