@@ -24,6 +24,7 @@ from torch import nn
 
 from stage1_pose.errors import DancesynthError
 from stage1_pose.models.base import Batch, Stage1Method
+from stage1_pose.models.variety import best_of
 from stage1_pose.perceptual import PosePerceptualLoss
 from stage1_pose.skeleton import NUM_JOINTS
 
@@ -45,6 +46,12 @@ class RenConfig:
     pose head's first layer (1 = the paper's per-frame MLP; wider lets it low-pass the per-frame audio codes,
     which are nearly white from frame to frame); ``w_velocity`` weight of an L1 loss between generated and
     real frame-to-frame motion (0 = the paper), which charges jitter directly but also damps uncertain motion.
+    Noise (the paper has none; the official code concatenates a noise sequence run through a GRU): ``noise_dim``
+    numbers per frame with standard deviation ``noise_std``, drawn independently every ``noise_frames`` frames
+    and linearly interpolated in between (1 = a fresh draw every frame, as in the official code); with
+    ``variety_samples`` K > 1 every training clip gets K noise draws and Eq. 7 is computed on the draw
+    closest to the real dance (:mod:`stage1_pose.models.variety`). With K = 1 the L1 and perceptual terms
+    make the generator ignore its noise, and per-frame noise can only make it shake.
     """
 
     samples_per_frame: int = 1024
@@ -54,6 +61,8 @@ class RenConfig:
     gru_hidden: int = 256
     noise_dim: int = 10
     noise_std: float = 0.33
+    noise_frames: int = 1
+    variety_samples: int = 1
     mlp_hidden: int = 1024
     mlp_blocks: int = 3
     head_kernel: int = 1
@@ -91,6 +100,11 @@ class RenConfig:
     @property
     def uses_perceptual(self) -> bool:
         return self.w_perceptual > 0
+
+    def __post_init__(self) -> None:
+        if self.noise_frames < 1 or self.variety_samples < 1:
+            raise DancesynthError(f"noise_frames and variety_samples must be at least 1, not "
+                                  f"{self.noise_frames} and {self.variety_samples}.")
 
     @classmethod
     def preset(cls, name: str) -> "RenConfig":
@@ -210,10 +224,13 @@ class RenGenerator(nn.Module):
         self.out = nn.Linear(config.mlp_hidden, NUM_JOINTS * 2)
 
     def forward(self, audio: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
-        h = self.music(audio)
+        return self.decode(self.music(audio), noise)
+
+    def decode(self, h: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
+        """Music codes ``h [B, T, 2 * gru_hidden]`` (from ``self.music``) + noise -> poses ``[B, T, 25, 2]``."""
         z = torch.tanh(self.noise_gru(noise)[0])
         x = self.blocks(self.inp(frame_context(torch.cat([h, z], dim=-1), self.head_kernel)))
-        b, t, _ = audio.shape
+        b, t, _ = h.shape
         return self.out(self.dropout(x)).view(b, t, NUM_JOINTS, 2)
 
 
@@ -432,15 +449,33 @@ class RenMethod(Stage1Method):
 
     def sample_noise(self, batch: int, frames: int, device: torch.device,
                      generator: torch.Generator | None = None) -> torch.Tensor:
-        """``[batch, frames, noise_dim]`` Gaussian noise with the config's standard deviation."""
-        shape = (batch, frames, self.config.noise_dim)
-        noise = torch.randn(shape, generator=generator, device=device if generator is None else generator.device)
-        return (noise * self.config.noise_std).to(device)
+        """``[batch, frames, noise_dim]`` Gaussian noise, standard deviation ``noise_std`` in every frame.
+
+        Independent draws every ``noise_frames`` frames (at a random phase), linearly interpolated and rescaled
+        so that frames between two draws keep the same spread.
+        """
+        cfg = self.config
+        draw_on = device if generator is None else generator.device
+        step = cfg.noise_frames
+        if step == 1:
+            noise = torch.randn((batch, frames, cfg.noise_dim), generator=generator, device=draw_on)
+        else:
+            knots = torch.randn((batch, frames // step + 3, cfg.noise_dim), generator=generator, device=draw_on)
+            phase = int(torch.randint(step, (1,), generator=generator, device=draw_on))
+            position = (torch.arange(frames, device=draw_on) + phase) / step
+            left = position.floor().long()
+            w = (position - left)[None, :, None]
+            noise = (knots[:, left] * (1 - w) + knots[:, left + 1] * w) / torch.sqrt(w ** 2 + (1 - w) ** 2)
+        return (noise * cfg.noise_std).to(device)
 
     def training_step(self, batch: Batch, epoch: int) -> dict[str, float]:
         cfg = self.config
         audio, real = batch.audio, batch.poses
-        fake = self.generator(audio, self.sample_noise(real.shape[0], real.shape[1], real.device))
+        k, (b, t) = cfg.variety_samples, real.shape[:2]
+        # The music is encoded once; the K noise draws share it as one batch of K x B clips.
+        codes = self.generator.music(audio).repeat(k, 1, 1)
+        fakes = self.generator.decode(codes, self.sample_noise(k * b, t, real.device))
+        fake, l1 = best_of(fakes.view(k, b, t, NUM_JOINTS, 2), real)
         logs: dict[str, float] = {}
 
         if self.d_local is not None:
@@ -467,7 +502,6 @@ class RenMethod(Stage1Method):
 
         discriminators = [d for d in (self.d_local, self.d_global) if d is not None]
         with frozen(*discriminators):
-            l1 = F.l1_loss(fake, real)
             loss = cfg.w_l1 * l1
             logs["l1"] = l1.item()
             if cfg.w_velocity > 0:

@@ -89,3 +89,41 @@ def test_tiny_model_overfits_one_clip_with_curriculum():
     losses = [model.training_step(batch, epoch=e // 30)["l1"] for e in range(120)]
     assert model.p == 1 and model.curriculum_state()["p"] == 1
     assert losses[-1] < losses[0] / 5
+
+
+def two_mode_batch(feature_dim: int) -> Batch:
+    """One song danced two ways (a move and its mirror image): an L1 loss alone learns their mean."""
+    t = torch.linspace(0, 6.28, 20)
+    move = torch.stack([torch.sin(t + j) for j in range(50)], dim=-1).reshape(20, 25, 2) * 0.5
+    audio = torch.randn(1, 20, feature_dim).expand(2, -1, -1)
+    return Batch(audio, torch.stack([move, -move]), torch.zeros(2, dtype=torch.long))
+
+
+def free_running_dances(variety_samples: int, batch: Batch) -> list[torch.Tensor]:
+    """Train on ``batch`` with every decoder input after the begin-of-pose predicted; generate 8 seeds."""
+    torch.manual_seed(0)
+    model = DanceRevolution(dataclasses.replace(TINY, variety_samples=variety_samples))
+    model._optimizers = model.configure_optimizers()
+    for _ in range(300):
+        model.training_step(batch, epoch=40)
+    assert model.p >= 19
+    model.eval()
+    return [model.generate(batch.audio[:1], torch.Generator().manual_seed(s))[0] for s in range(8)]
+
+
+def test_variety_loss_makes_the_initial_state_choose_the_dance():
+    batch = two_mode_batch(12)
+    move = batch.poses[0]
+    size = move.abs().mean()
+    # Plain L1: every seed gives the mean of the two dances, a near-standstill.
+    assert max(d.abs().mean() for d in free_running_dances(1, batch)) < 0.25 * size
+    # Best of 4: every seed moves, most dance one of the two ways, and both ways occur.
+    dances = free_running_dances(4, batch)
+    assert min(d.abs().mean() for d in dances) > 0.5 * size
+    assert torch.stack([min((d - move).abs().mean(), (d + move).abs().mean()) for d in dances]).median() < 0.5 * size
+    assert {int(torch.sign((d * move).sum())) for d in dances} == {-1, 1}
+
+
+def test_variety_samples_must_be_positive():
+    with pytest.raises(DancesynthError, match="variety_samples"):
+        dataclasses.replace(TINY, variety_samples=0)

@@ -162,3 +162,49 @@ def test_frame_context_stacks_neighbours_and_repeats_edges():
     x = torch.arange(4.0).view(1, 4, 1)
     assert frame_context(x, 1).equal(x)
     assert frame_context(x, 3)[0].tolist() == [[0, 0, 1], [0, 1, 2], [1, 2, 3], [2, 3, 3]]
+
+
+def test_held_noise_is_smooth_with_the_configured_spread():
+    method = RenMethod(tiny(noise_frames=10, noise_std=0.5))
+    noise = method.sample_noise(400, 30, torch.device("cpu"), torch.Generator().manual_seed(0))
+    assert noise.shape == (400, 30, method.config.noise_dim)
+    assert torch.equal(noise, method.sample_noise(400, 30, torch.device("cpu"), torch.Generator().manual_seed(0)))
+    std = noise.std(dim=(0, 2))
+    assert torch.allclose(std, torch.full_like(std, 0.5), rtol=0.1)
+    step = (noise[:, 1:] - noise[:, :-1]).abs().mean() / noise.abs().mean()
+    fresh = RenMethod(tiny(noise_std=0.5)).sample_noise(400, 30, torch.device("cpu"))
+    fresh_step = (fresh[:, 1:] - fresh[:, :-1]).abs().mean() / fresh.abs().mean()
+    assert step < 0.3 < 1.0 < fresh_step
+
+
+def two_mode_dances(variety_samples: int) -> tuple[torch.Tensor, list[torch.Tensor]]:
+    """Train the L1 row on one song danced two ways (a move and its mirror image); dances of 8 seeds."""
+    torch.manual_seed(0)
+    method = RenMethod(tiny("l1-small", lr_g=3e-3, noise_frames=20, variety_samples=variety_samples))
+    method._optimizers = method.configure_optimizers()
+    t = torch.linspace(0, 6.28, 20)
+    move = torch.stack([torch.sin(t + j) for j in range(50)], dim=-1).view(20, 25, 2) * 0.5
+    audio = torch.randn(1, 20, S).expand(2, -1, -1)
+    batch = Batch(audio, torch.stack([move, -move]), torch.tensor([0, 0]))
+    for _ in range(150):
+        method.training_step(batch, 0)
+    method.eval()
+    return move, [method.generate(audio[:1], torch.Generator().manual_seed(s))[0] for s in range(8)]
+
+
+def test_variety_loss_makes_the_noise_choose_the_dance():
+    move, dances = two_mode_dances(1)
+    size = move.abs().mean()
+    # Plain L1: every seed gives the mean of the two dances, a near-standstill.
+    assert max(d.abs().mean() for d in dances) < 0.25 * size
+    # Best of 4: every seed moves, most dance one of the two ways, and both ways occur.
+    move, dances = two_mode_dances(4)
+    assert min(d.abs().mean() for d in dances) > 0.5 * size
+    assert torch.stack([min((d - move).abs().mean(), (d + move).abs().mean()) for d in dances]).median() < 0.5 * size
+    assert {int(torch.sign((d * move).sum())) for d in dances} == {-1, 1}
+
+
+def test_noise_frames_and_variety_samples_must_be_positive():
+    for field in ("noise_frames", "variety_samples"):
+        with pytest.raises(DancesynthError, match="must be at least 1"):
+            tiny(**{field: 0})
