@@ -6,7 +6,8 @@ is generated with two seeds and compared with the real dances of the held-out cl
     dances' mean speed;
   * seeds: mean distance (pixels) between the joints of the two seeds' dances, against the same distance between
     two different real dances of one style (the scale of "another dance"); the seeds differ when the gap is at
-    least 10 % of that;
+    least 10 % of that; also split into body (joints relative to the MidHip) and root (the MidHip's position on
+    the canvas, i.e. where the dancer stands), since real dancers differ most in where they stand;
   * beats: beat hit rate (kinematic beats within 2 frames of a music beat, stage1_pose.metrics) against chance,
     the hit rate of the same kinematic beats after random circular shifts (same count and rhythm, random phase);
     on the beat when it beats chance by 0.10.
@@ -23,6 +24,7 @@ from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.generate import generate_dance, load_pose_model
 from stage1_pose.kinematic_beats import kinematic_beats
 from stage1_pose.metrics import beat_hit_rate
+from stage1_pose.skeleton import ROOT
 
 
 def mean_speed(xy: np.ndarray, fps: float) -> float:
@@ -37,16 +39,20 @@ def chance_hit_rate(kin: np.ndarray, music: np.ndarray, frames: int, rng: np.ran
     return float(np.nanmean(rates))
 
 
-def real_pair_gap(data: DanceDataset, clips: list, frames: int) -> float:
-    """Mean joint distance (pixels) between two real dances of one style, over pairs of the given clips."""
-    gaps = []
-    for i, a in enumerate(clips):
-        for b in clips[i + 1:]:
-            if a.style == b.style:
-                xa, xb = data.load_poses(a).xy[:frames], data.load_poses(b).xy[:frames]
-                n = min(len(xa), len(xb))
-                gaps.append(float(np.linalg.norm(xa[:n] - xb[:n], axis=-1).mean()))
-    return float(np.mean(gaps)) if gaps else float("nan")
+def gaps(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Mean distance (pixels) between two ``[T, 25, 2]`` dances: all joints, body (relative to the MidHip), root."""
+    n = min(len(a), len(b))
+    a, b = a[:n], b[:n]
+    body = (a - a[:, ROOT:ROOT + 1]) - (b - b[:, ROOT:ROOT + 1])
+    return np.array([np.linalg.norm(a - b, axis=-1).mean(), np.linalg.norm(body, axis=-1).mean(),
+                     np.linalg.norm(a[:, ROOT] - b[:, ROOT], axis=-1).mean()])
+
+
+def real_pair_gap(data: DanceDataset, clips: list, frames: int) -> np.ndarray:
+    """:func:`gaps` between two real dances of one style, averaged over pairs of the given clips."""
+    found = [gaps(data.load_poses(a).xy[:frames], data.load_poses(b).xy[:frames])
+             for i, a in enumerate(clips) for b in clips[i + 1:] if a.style == b.style]
+    return np.mean(found, axis=0) if found else np.full(3, np.nan)
 
 
 def main() -> None:
@@ -69,9 +75,10 @@ def main() -> None:
     pair_gap = real_pair_gap(data, data.clips("train") + held_out, frames_wanted)
     rng = np.random.default_rng(0)
     print(f"run {args.run} ({model.meta['method']}, epoch {model.meta['epoch']}); real held-out mean speed "
-          f"{real_speed:.1f} px/s; two real dances of one style differ by {pair_gap:.1f} px on average")
+          f"{real_speed:.1f} px/s; two real dances of one style differ by {pair_gap[0]:.1f} px on average "
+          f"(body {pair_gap[1]:.1f}, root {pair_gap[2]:.1f})")
     print(f"{'clip':<16}{'dance':<8}{'speed first 10s':>16}{'speed last 10s':>15}{'last/first':>11}{'vs real':>8}"
-          f"{'kin beats':>10}{'hit rate':>9}{'chance':>8}{'seed gap px':>12}")
+          f"{'kin beats':>10}{'hit rate':>9}{'chance':>8}{'seed gap px (body, root)':>26}")
     verdicts = []
     for clip in held_out[:args.clips]:
         samples = data.load_audio(clip)[: int(args.seconds * data.sample_rate)]
@@ -80,17 +87,17 @@ def main() -> None:
         music = data.load_beats(clip)["beats"] * fps
         music = music[music < frames]
         real_xy = data.load_poses(clip).xy[:frames]
-        seed_gap = float(np.linalg.norm(dances[0].xy - dances[1].xy, axis=-1).mean())
+        seed_gap = gaps(dances[0].xy, dances[1].xy)
         for name, xy in [("real", real_xy)] + [(f"seed {s}", d.xy) for s, d in zip((0, 1), dances)]:
             first, last = mean_speed(xy[:ten], fps), mean_speed(xy[-ten:], fps)
             kin = kinematic_beats(xy, fps)
             hit, chance = beat_hit_rate(kin, music), chance_hit_rate(kin, music, len(xy), rng)
-            gap = f"{seed_gap:12.1f}" if name == "seed 1" else ""
+            gap = f"{seed_gap[0]:12.1f} ({seed_gap[1]:.1f}, {seed_gap[2]:.1f})" if name == "seed 1" else ""
             print(f"{clip.id:<16}{name:<8}{first:16.1f}{last:15.1f}{last / max(first, 1e-9):11.2f}"
                   f"{last / real_speed:8.2f}{len(kin):10d}{hit:9.2f}{chance:8.2f}{gap}")
             if name != "real":
                 verdicts.append((clip.id, name, last >= 0.5 * first and last >= 0.5 * real_speed,
-                                 hit > chance + 0.1, seed_gap >= 0.1 * pair_gap))
+                                 hit > chance + 0.1, seed_gap[0] >= 0.1 * pair_gap[0]))
     for clip_id, name, moving, on_beat, differs in verdicts:
         print(f"{clip_id} {name}: no freeze {'PASS' if moving else 'FAIL'}, beats above chance (+0.10) "
               f"{'PASS' if on_beat else 'FAIL'}, seeds differ (>= 10 % of a real pair) {'PASS' if differs else 'FAIL'}")
