@@ -20,12 +20,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import torch
+import torch.nn.functional as F
 from torch import nn
 
 from stage1_pose.errors import DancesynthError
 from stage1_pose.models.base import Batch, Stage1Method
 from stage1_pose.models.local_attention import LocalSelfAttention
-from stage1_pose.models.variety import best_of
 from stage1_pose.skeleton import NUM_JOINTS
 
 POSE_DIM = NUM_JOINTS * 2
@@ -40,9 +40,6 @@ class DanceRevolutionConfig:
     ``window`` is the local-attention width k in frames; ``curriculum`` one of :data:`SCHEDULES` with
     ``lam`` (λ) and ``q`` ground-truth frames per cycle (``const_p`` is p for the const schedule);
     ``window_frames`` the training sequence length in frames; ``lr`` Adam's learning rate.
-    ``variety_samples`` K initial states drawn per training sequence, the L1 loss charged on the best of them
-    (:mod:`stage1_pose.models.variety`; 1 = the paper's plain L1, under which the decoder learns to ignore its
-    random initial state, so that two seeds give one dance).
     """
 
     feature_dim: int = 438
@@ -64,13 +61,10 @@ class DanceRevolutionConfig:
     batch_size: int = 32
     window_frames: int = 900
     epochs: int = 10000
-    variety_samples: int = 1
 
     def __post_init__(self) -> None:
         if self.curriculum not in SCHEDULES:
             raise DancesynthError(f"Unknown curriculum {self.curriculum!r}; choose one of {', '.join(SCHEDULES)}.")
-        if self.variety_samples < 1:
-            raise DancesynthError(f"variety_samples must be at least 1, not {self.variety_samples}.")
 
     @classmethod
     def preset(cls, name: str) -> "DanceRevolutionConfig":
@@ -325,15 +319,11 @@ class DanceRevolution(Stage1Method):
     def training_step(self, batch: Batch, epoch: int) -> dict[str, float]:
         self.epoch = epoch
         target = batch.poses.flatten(2)
-        batch_size, frames, _ = target.shape
-        k = self.config.variety_samples
+        frames = target.shape[1]
         z = self.encoder(batch.audio)
-        # The K draws run as one batch of K x B sequences, which costs less than K batches (small preset, one
-        # core: 4 draws take 2-2.3x the time of one).
-        state = self.decoder.initial_state(k * batch_size, target.device)
-        pred = self.decoder(z.repeat(k, 1, 1), state, target.repeat(k, 1, 1),
-                            predicted_inputs(frames, self.p, self.config.q))
-        loss = best_of(pred.view(k, batch_size, frames, POSE_DIM), target)[1]
+        state = self.decoder.initial_state(target.shape[0], target.device)
+        pred = self.decoder(z, state, target, predicted_inputs(frames, self.p, self.config.q))
+        loss = F.l1_loss(pred, target)
         self.optimize("main", loss)
         return {"l1": loss.item(), "p": float(self.p)}
 
