@@ -24,7 +24,7 @@ from torch import nn
 
 from stage1_pose.errors import DancesynthError
 from stage1_pose.models.base import Batch, Stage1Method
-from stage1_pose.models.variety import best_of
+from stage1_pose.models.variety import best_of, held_noise
 from stage1_pose.perceptual import PosePerceptualLoss
 from stage1_pose.skeleton import NUM_JOINTS
 
@@ -452,24 +452,9 @@ class RenMethod(Stage1Method):
 
     def sample_noise(self, batch: int, frames: int, device: torch.device,
                      generator: torch.Generator | None = None) -> torch.Tensor:
-        """``[batch, frames, noise_dim]`` Gaussian noise, standard deviation ``noise_std`` in every frame.
-
-        Independent draws every ``noise_frames`` frames (at a random phase), linearly interpolated and rescaled
-        so that frames between two draws keep the same spread.
-        """
+        """``[batch, frames, noise_dim]`` noise held over ``noise_frames`` (:func:`held_noise`)."""
         cfg = self.config
-        draw_on = device if generator is None else generator.device
-        step = cfg.noise_frames
-        if step == 1:
-            noise = torch.randn((batch, frames, cfg.noise_dim), generator=generator, device=draw_on)
-        else:
-            knots = torch.randn((batch, frames // step + 3, cfg.noise_dim), generator=generator, device=draw_on)
-            phase = int(torch.randint(step, (1,), generator=generator, device=draw_on))
-            position = (torch.arange(frames, device=draw_on) + phase) / step
-            left = position.floor().long()
-            w = (position - left)[None, :, None]
-            noise = (knots[:, left] * (1 - w) + knots[:, left + 1] * w) / torch.sqrt(w ** 2 + (1 - w) ** 2)
-        return (noise * cfg.noise_std).to(device)
+        return held_noise(batch, frames, cfg.noise_dim, cfg.noise_frames, cfg.noise_std, device, generator)
 
     def training_step(self, batch: Batch, epoch: int) -> dict[str, float]:
         cfg = self.config
