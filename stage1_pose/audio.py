@@ -19,6 +19,8 @@ ANALYSIS_SR = 15360
 WAVEFORM_SR = 15360
 FEATURE_KINDS: tuple[str, ...] = ("dance_revolution", "dancing2music", "waveform")
 _FIXED_DIMS = {"dance_revolution": 20 + 20 + 12 + 1 + 1 + 384, "dancing2music": 13 + 13 + 2}
+# Column of the beat one-hot in the dance_revolution features (after MFCC, delta-MFCC, chroma and onset).
+BEAT_COLUMN = 20 + 20 + 12 + 1
 # The constant-Q transform halves the signal once per octave, so its hop must be a multiple of 2**6 for 7 octaves.
 _CQT_HOP_MULTIPLE = 64
 # Beat tracking: a 5.8 ms hop at 22050 Hz gives tempo resolution well below 1 BPM, and onset strength from the

@@ -5,7 +5,9 @@ Encoder (Sec. 3.2): linear embedding of the 438-d music features, sinusoidal pos
 transformer layers whose self-attention is local (window k, O(n·k) memory), giving ``z_i`` per frame.
 Decoder (Eq. 3-4): a 3-layer LSTM whose initial hidden and cell states are drawn from N(0, I) - the source of
 variety: another seed gives another dance - fed the previous pose (frame 0: the all-zero begin-of-pose);
-``y_i = [h_i; z_i] W + b``.
+``y_i = [h_i; z_i] W + b``. Optionally (``code_dim`` > 0, the ``small`` preset) each input also carries a
+choreography code drawn per segment (:mod:`stage1_pose.models.segment_latent`), because the decoder forgets its
+initial state within a few frames and seeds then give the same dance.
 Curriculum (Sec. 3.3): decoder inputs alternate ``p`` of its own predictions with ``q`` ground-truth frames,
 ``p = f(epoch)`` growing with one of const, ⌊λt⌋, ⌊λt²⌋, ⌊λeᵗ⌋; L1 loss.
 
@@ -23,9 +25,11 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from stage1_pose.audio import BEAT_COLUMN
 from stage1_pose.errors import DancesynthError
 from stage1_pose.models.base import Batch, Stage1Method
 from stage1_pose.models.local_attention import LocalSelfAttention
+from stage1_pose.models.segment_latent import SegmentPosterior, beat_segments, fixed_segments, prior_codes
 from stage1_pose.skeleton import NUM_JOINTS
 
 POSE_DIM = NUM_JOINTS * 2
@@ -40,6 +44,10 @@ class DanceRevolutionConfig:
     ``window`` is the local-attention width k in frames; ``curriculum`` one of :data:`SCHEDULES` with
     ``lam`` (λ) and ``q`` ground-truth frames per cycle (``const_p`` is p for the const schedule);
     ``window_frames`` the training sequence length in frames; ``lr`` Adam's learning rate.
+    ``code_dim`` > 0 adds a choreography code (not in the paper, see :mod:`stage1_pose.models.segment_latent`):
+    ``code_dim`` numbers per segment of ``code_frames`` frames (``code_on_beats``: per interval between the
+    beats of the features' beat one-hot), appended to every decoder input, learned with a
+    posterior over the real dance and a KL term weighted ``kl_weight`` against the L1 loss; 0 is the paper.
     """
 
     feature_dim: int = 438
@@ -61,10 +69,18 @@ class DanceRevolutionConfig:
     batch_size: int = 32
     window_frames: int = 900
     epochs: int = 10000
+    code_dim: int = 0
+    code_frames: int = 15
+    code_on_beats: bool = False
+    kl_weight: float = 0.01
 
     def __post_init__(self) -> None:
         if self.curriculum not in SCHEDULES:
             raise DancesynthError(f"Unknown curriculum {self.curriculum!r}; choose one of {', '.join(SCHEDULES)}.")
+        if self.code_dim < 0 or self.code_frames < 1 or self.kl_weight < 0:
+            raise DancesynthError("code_dim must be >= 0, code_frames >= 1 and kl_weight >= 0.")
+        if self.code_on_beats and self.feature_dim <= BEAT_COLUMN:
+            raise DancesynthError("code_on_beats needs the dance_revolution features (their beat one-hot column).")
 
     @classmethod
     def preset(cls, name: str) -> "DanceRevolutionConfig":
@@ -80,10 +96,13 @@ DANCE_REVOLUTION_PRESETS: dict[str, DanceRevolutionConfig] = {
     # n = 900, λ = 0.01, q = 10, Adam 1e-4, batch 32).
     "paper": DanceRevolutionConfig(),
     # CPU-sized: narrow layers; 30-s windows, because a decoder trained on 6-s windows drifted to a near-standstill
-    # after about 10 s of a 60-s dance (its state left the range it was trained in); p = ⌊t⌋ grows to 30x q, so
-    # the decoder learns to continue from its own output as the paper's long schedule does.
+    # after about 10 s of a 60-s dance (its state left the range it was trained in); p = ⌊t⌋ grows to 7x q in
+    # 70 epochs (15 minutes), so the decoder learns to continue from its own output. The paper's decoder gave
+    # the same dance for every seed (it forgets its initial state), hence the choreography code, one per beat
+    # interval; KL weight 0.0005 (seeds 17-20 px apart) rather than 0.002 (7-19 px), measured in the README.
     "small": DanceRevolutionConfig(d_model=64, heads=4, d_k=16, d_v=16, d_ff=128, layers=2, window=30,
-                                   lstm_hidden=128, lam=1.0, lr=1e-3, batch_size=16, window_frames=450, epochs=300),
+                                   lstm_hidden=128, lam=1.0, lr=1e-3, batch_size=16, window_frames=450, epochs=70,
+                                   code_dim=8, code_on_beats=True, kl_weight=0.0005),
 }
 
 
@@ -232,7 +251,7 @@ class DanceDecoder(nn.Module):
 
     def __init__(self, cfg: DanceRevolutionConfig) -> None:
         super().__init__()
-        self.lstm = nn.LSTM(POSE_DIM, cfg.lstm_hidden, num_layers=cfg.lstm_layers, batch_first=True)
+        self.lstm = nn.LSTM(POSE_DIM + cfg.code_dim, cfg.lstm_hidden, num_layers=cfg.lstm_layers, batch_first=True)
         self.out_h = nn.Linear(cfg.lstm_hidden, POSE_DIM, bias=False)
         self.out_z = nn.Linear(cfg.d_model, POSE_DIM)
 
@@ -245,22 +264,23 @@ class DanceDecoder(nn.Module):
         return state[0].contiguous(), state[1].contiguous()
 
     def forward(self, z: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor], targets: torch.Tensor,
-                predicted: list[bool]) -> torch.Tensor:
-        """Training: ``z [B, T, d_model]``, ``targets [B, T, 50]`` -> poses ``[B, T, 50]``.
+                predicted: list[bool], codes: torch.Tensor) -> torch.Tensor:
+        """Training: ``z [B, T, d_model]``, ``targets [B, T, 50]``, ``codes [B, T, code_dim]`` -> ``[B, T, 50]``.
 
         Input i is the begin-of-pose (i = 0), the model's previous output where ``predicted[i]``, else
-        ``targets[:, i-1]``.
+        ``targets[:, i-1]``; each with ``codes[:, i]`` appended.
         """
         frames = z.shape[1]
         zw = self.out_z(z)
         shifted = torch.cat([targets.new_zeros(targets.shape[0], 1, POSE_DIM), targets[:, :-1]], dim=1)
+        shifted = torch.cat([shifted, codes], dim=2)
         stepper = LSTMStepper(self.lstm)
         h, c = list(state[0].unbind(0)), list(state[1].unbind(0))
         outputs: list[torch.Tensor] = []
         i = 0
         while i < frames:
             if predicted[i]:
-                h, c = stepper.step(outputs[-1][:, -1], h, c)
+                h, c = stepper.step(torch.cat([outputs[-1][:, -1], codes[:, i]], dim=1), h, c)
                 outputs.append((self.out_h(h[-1]) + zw[:, i])[:, None])
                 i += 1
                 continue
@@ -274,9 +294,10 @@ class DanceDecoder(nn.Module):
         return torch.cat(outputs, dim=1)
 
     @torch.no_grad()
-    def generate(self, z: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor],
+    def generate(self, z: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor], codes: torch.Tensor,
                  stepper: LSTMStepper | None = None) -> torch.Tensor:
-        """Free running: ``z [B, T, d_model]`` -> poses ``[B, T, 50]``, each frame fed back as the next input.
+        """Free running: ``z [B, T, d_model]``, ``codes [B, T, code_dim]`` -> poses ``[B, T, 50]``, each frame
+        fed back as the next input.
 
         ``stepper`` (default: exact fp32 on the current weights) lets inference reuse prepared weights.
         """
@@ -287,7 +308,7 @@ class DanceDecoder(nn.Module):
         out = z.new_empty(batch, frames, POSE_DIM)
         y = z.new_zeros(batch, POSE_DIM)
         for i in range(frames):
-            h, c = stepper.step(y, h, c)
+            h, c = stepper.step(torch.cat([y, codes[:, i]], dim=1), h, c)
             y = self.out_h(h[-1]) + zw[:, i]
             out[:, i] = y
         return out
@@ -303,6 +324,7 @@ class DanceRevolution(Stage1Method):
         super().__init__(config)
         self.encoder = MusicEncoder(config)
         self.decoder = DanceDecoder(config)
+        self.posterior = SegmentPosterior(POSE_DIM, config.code_dim) if config.code_dim else None
         self.epoch = 0
         # Prepared decoding weights for inference (see prepare_inference); None = exact, rebuilt per call.
         self._stepper: LSTMStepper | None = None
@@ -322,18 +344,33 @@ class DanceRevolution(Stage1Method):
         frames = target.shape[1]
         z = self.encoder(batch.audio)
         state = self.decoder.initial_state(target.shape[0], target.device)
-        pred = self.decoder(z, state, target, predicted_inputs(frames, self.p, self.config.q))
-        loss = F.l1_loss(pred, target)
-        self.optimize("main", loss)
-        return {"l1": loss.item(), "p": float(self.p)}
+        if self.posterior is None:
+            codes, kl = target.new_zeros(*target.shape[:2], 0), None
+        else:
+            codes, kl = self.posterior.sample(target, self.segments(batch.audio))
+        pred = self.decoder(z, state, target, predicted_inputs(frames, self.p, self.config.q), codes)
+        l1 = F.l1_loss(pred, target)
+        self.optimize("main", l1 if kl is None else l1 + self.config.kl_weight * kl)
+        return {"l1": l1.item(), "p": float(self.p)} | ({} if kl is None else {"kl": kl.item()})
 
     @torch.no_grad()
     def generate(self, audio: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
-        """``[B, T, feature_dim]`` -> ``[B, T, 25, 2]`` for any T; the initial LSTM state comes from ``generator``."""
+        """``[B, T, feature_dim]`` -> ``[B, T, 25, 2]`` for any T; the initial LSTM state and the choreography
+        codes come from ``generator``."""
+        batch, frames = audio.shape[:2]
         z = self.encoder.encode_chunked(audio)
-        state = self.decoder.initial_state(audio.shape[0], audio.device, generator)
+        state = self.decoder.initial_state(batch, audio.device, generator)
+        codes = prior_codes(self.segments(audio), self.config.code_dim, generator)
         stepper = self._stepper if audio.device.type == "cpu" else None
-        return self.decoder.generate(z, state, stepper).reshape(audio.shape[0], audio.shape[1], NUM_JOINTS, 2)
+        return self.decoder.generate(z, state, codes, stepper).reshape(batch, frames, NUM_JOINTS, 2)
+
+    def segments(self, audio: torch.Tensor) -> torch.Tensor:
+        """Choreography-code segment ids ``[B, T]`` for standardised features ``[B, T, feature_dim]``: a new
+        segment at every beat of the beat one-hot (a beat frame is above the column's mean) or every
+        ``code_frames`` frames."""
+        if self.config.code_on_beats:
+            return beat_segments(audio[..., BEAT_COLUMN] > 0)
+        return fixed_segments(audio.shape[0], audio.shape[1], self.config.code_frames, audio.device)
 
     def prepare_inference(self, precision: str = "fp32") -> None:
         """Freeze the current weights for fast decoding: ``"int8"`` quantises the LSTM (CPU only, about 3x

@@ -6,6 +6,7 @@ import torch
 # The machine is shared: one intra-op thread avoids OpenMP contention that makes tiny ops take milliseconds.
 torch.set_num_threads(1)
 
+from stage1_pose.audio import BEAT_COLUMN
 from stage1_pose.errors import DancesynthError
 from stage1_pose.models.base import Batch
 from stage1_pose.models.dance_revolution import (
@@ -55,16 +56,18 @@ def test_generate_shapes_seeds_and_length():
     assert torch.equal(a, b) and not torch.allclose(a, c)
 
 
-def test_fused_lstm_runs_and_stepper_agree():
+@pytest.mark.parametrize("code_dim", [0, 3])
+def test_fused_lstm_runs_and_stepper_agree(code_dim):
     # Feeding the free-running outputs back as "ground truth" must reproduce them, whichever decoder inputs
     # the curriculum marks as predicted: nn.LSTM runs and per-frame fused steps are the same maths.
-    model = DanceRevolution(TINY).eval()
+    model = DanceRevolution(dataclasses.replace(TINY, code_dim=code_dim)).eval()
     z = model.encoder(torch.randn(2, 25, 12))
     state = model.decoder.initial_state(2, z.device, torch.Generator().manual_seed(0))
-    free = model.decoder.generate(z, state)
+    codes = torch.randn(2, 25, code_dim)
+    free = model.decoder.generate(z, state, codes)
     for p in (0, 2, 30):
         with torch.no_grad():
-            forced = model.decoder(z, state, free, predicted_inputs(25, p, 3))
+            forced = model.decoder(z, state, free, predicted_inputs(25, p, 3), codes)
         torch.testing.assert_close(forced, free, rtol=1e-5, atol=1e-5)
 
 
@@ -89,3 +92,45 @@ def test_tiny_model_overfits_one_clip_with_curriculum():
     losses = [model.training_step(batch, epoch=e // 30)["l1"] for e in range(120)]
     assert model.p == 1 and model.curriculum_state()["p"] == 1
     assert losses[-1] < losses[0] / 5
+
+
+def two_way_dances(code_dim: int) -> tuple[torch.Tensor, list[torch.Tensor]]:
+    """Train free-running on one song danced two ways (a move and its mirror image); dances of 8 seeds."""
+    torch.manual_seed(0)
+    model = DanceRevolution(dataclasses.replace(TINY, code_dim=code_dim, code_frames=20, kl_weight=0.001))
+    model._optimizers = model.configure_optimizers()
+    t = torch.linspace(0, 6.28, 20)
+    move = torch.stack([torch.sin(t + j) for j in range(50)], dim=-1).view(20, 25, 2) * 0.5
+    audio = torch.randn(1, 20, 12).expand(2, -1, -1)
+    batch = Batch(audio, torch.stack([move, -move]), torch.zeros(2, dtype=torch.long))
+    for _ in range(300):
+        model.training_step(batch, epoch=100)  # p = 50: every input is the decoder's own output
+    model.eval()
+    return move, [model.generate(audio[:1], torch.Generator().manual_seed(s))[0] for s in range(8)]
+
+
+def test_choreography_code_makes_the_seed_choose_the_dance():
+    move, dances = two_way_dances(0)
+    size = move.abs().mean()
+    # The paper's decoder: whatever its initial state, the L1 loss makes it dance the mean of the two ways.
+    assert max(d.abs().mean() for d in dances) < 0.25 * size
+    # With a code: most seeds dance one of the two ways, and both ways occur.
+    move, dances = two_way_dances(2)
+    assert torch.stack([min((d - move).abs().mean(), (d + move).abs().mean()) for d in dances]).median() < 0.4 * size
+    assert {int(torch.sign((d * move).sum())) for d in dances} == {-1, 1}
+
+
+def test_code_settings_are_checked():
+    for field, value in (("code_dim", -1), ("code_frames", 0), ("kl_weight", -0.1)):
+        with pytest.raises(DancesynthError, match="code_dim must be"):
+            dataclasses.replace(TINY, **{field: value})
+
+
+def test_code_segments_follow_the_beat_one_hot():
+    model = DanceRevolution(dataclasses.replace(TINY, feature_dim=BEAT_COLUMN + 2, code_dim=2, code_on_beats=True))
+    audio = torch.full((1, 12, BEAT_COLUMN + 2), -0.3)
+    audio[0, [4, 9], BEAT_COLUMN] = 2.5  # standardised one-hot: beat frames are above the column's mean
+    assert model.segments(audio).tolist() == [[0] * 4 + [1] * 5 + [2] * 3]
+    assert model.generate(audio, torch.Generator().manual_seed(0)).shape == (1, 12, 25, 2)
+    with pytest.raises(DancesynthError, match="beat one-hot"):
+        dataclasses.replace(TINY, code_dim=2, code_on_beats=True)
