@@ -10,7 +10,8 @@ is generated with two seeds and compared with the real dances of the held-out cl
     the canvas, i.e. where the dancer stands), since real dancers differ most in where they stand;
   * beats: beat hit rate (kinematic beats within 2 frames of a music beat, stage1_pose.metrics) against chance,
     the hit rate of the same kinematic beats after random circular shifts (same count and rhythm, random phase);
-    on the beat when it beats chance by 0.10.
+    on the beat when it beats chance by 0.10; and the mean joint speed by beat phase (tenths of the interval from
+    one music beat to the next; real dances slow down on the beat).
 Usage: python benchmarks/check_stage1_quality.py RUN_DIR [--data DIR] [--clips 3] [--seconds 60] [--precision auto]
 """
 
@@ -37,6 +38,18 @@ def chance_hit_rate(kin: np.ndarray, music: np.ndarray, frames: int, rng: np.ran
     """Hit rate of ``kin`` circularly shifted by random offsets: what beat-blind movement would score."""
     rates = [beat_hit_rate((kin + s) % frames, music) for s in rng.integers(0, frames, shifts)]
     return float(np.nanmean(rates))
+
+
+def speed_by_beat_phase(xy: np.ndarray, beats: np.ndarray, fps: float, bins: int = 10) -> np.ndarray:
+    """Mean joint speed (pixels/s) of ``[T, 25, 2]`` pixels in ``bins`` equal parts of each interval between two
+    music beats (fractional frames); NaN where a part has no frame."""
+    speed = np.linalg.norm(np.diff(xy, axis=0), axis=-1).mean(1) * fps
+    t = np.arange(len(speed)) + 0.5
+    k = np.searchsorted(beats, t) - 1
+    inside = (k >= 0) & (k < len(beats) - 1)
+    phase = (t[inside] - beats[k[inside]]) / (beats[k[inside] + 1] - beats[k[inside]])
+    part = np.minimum((phase * bins).astype(int), bins - 1)
+    return np.array([speed[inside][part == i].mean() if (part == i).any() else np.nan for i in range(bins)])
 
 
 def gaps(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -79,7 +92,7 @@ def main() -> None:
           f"(body {pair_gap[1]:.1f}, root {pair_gap[2]:.1f})")
     print(f"{'clip':<16}{'dance':<8}{'speed first 10s':>16}{'speed last 10s':>15}{'last/first':>11}{'vs real':>8}"
           f"{'kin beats':>10}{'hit rate':>9}{'chance':>8}{'seed gap px (body, root)':>26}")
-    verdicts = []
+    verdicts, profiles = [], []
     for clip in held_out[:args.clips]:
         samples = data.load_audio(clip)[: int(args.seconds * data.sample_rate)]
         dances = [generate_dance(model, samples, data.sample_rate, seed=s) for s in (0, 1)]
@@ -95,9 +108,12 @@ def main() -> None:
             gap = f"{seed_gap[0]:12.1f} ({seed_gap[1]:.1f}, {seed_gap[2]:.1f})" if name == "seed 1" else ""
             print(f"{clip.id:<16}{name:<8}{first:16.1f}{last:15.1f}{last / max(first, 1e-9):11.2f}"
                   f"{last / real_speed:8.2f}{len(kin):10d}{hit:9.2f}{chance:8.2f}{gap}")
+            profiles.append(f"{clip.id:<16}{name:<8}" + "".join(f"{v:6.0f}" for v in speed_by_beat_phase(xy, music, fps)))
             if name != "real":
                 verdicts.append((clip.id, name, last >= 0.5 * first and last >= 0.5 * real_speed,
                                  hit > chance + 0.1, seed_gap[0] >= 0.1 * pair_gap[0]))
+    print("\nmean joint speed (px/s) by beat phase, tenths of the interval from one music beat to the next:")
+    print("\n".join(profiles) + "\n")
     for clip_id, name, moving, on_beat, differs in verdicts:
         print(f"{clip_id} {name}: no freeze {'PASS' if moving else 'FAIL'}, beats above chance (+0.10) "
               f"{'PASS' if on_beat else 'FAIL'}, seeds differ (>= 10 % of a real pair) {'PASS' if differs else 'FAIL'}")
