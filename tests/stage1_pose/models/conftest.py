@@ -1,0 +1,22 @@
+from typing import Callable
+
+import pytest
+import torch
+
+
+@pytest.fixture
+def mirrored_move() -> torch.Tensor:
+    """A 20-frame move ``[20, 25, 2]`` (model coordinates); the same song danced two ways is it and its negative."""
+    t = torch.linspace(0, 6.28, 20)
+    return torch.stack([torch.sin(t + j) for j in range(50)], dim=-1).view(20, 25, 2) * 0.5
+
+
+@pytest.fixture
+def dances_one_way_or_the_other() -> Callable[[torch.Tensor, list[torch.Tensor], float], bool]:
+    """``check(move, dances, tolerance)``: the median dance is within ``tolerance`` x the move's size of the move
+    or its mirror image, and both ways occur."""
+    def check(move: torch.Tensor, dances: list[torch.Tensor], tolerance: float) -> bool:
+        nearest = torch.stack([min((d - move).abs().mean(), (d + move).abs().mean()) for d in dances])
+        both = {int(torch.sign((d * move).sum())) for d in dances} == {-1, 1}
+        return bool(nearest.median() < tolerance * move.abs().mean()) and both
+    return check
