@@ -68,7 +68,7 @@ class SegmentPosterior(nn.Module):
         mean, logvar = self.out(sums / sizes.clamp_min(1)[..., None]).chunk(2, dim=-1)
         return mean, logvar.clamp(-10.0, 10.0), sizes > 0
 
-    def sample(self, poses: torch.Tensor, ids: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    def sample(self, poses: torch.Tensor, ids: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """Reparameterised per-frame codes ``[B, T, dim]`` and the KL (nats per code number) of the segments
         present."""
         mean, logvar, present = self(poses, ids)
