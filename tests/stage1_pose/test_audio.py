@@ -74,10 +74,10 @@ def test_dance_revolution_beat_and_onset_columns_follow_the_kicks():
     sr = 22050
     y, beats = drum_loop(120, 8.0, sr)
     features = audio.extract_features(y, sr, "dance_revolution")
-    beat_frames = np.flatnonzero(features[:, 53])
+    beat_frames = np.flatnonzero(features[:, audio.BEAT_COLUMN])
     assert audio.beat_f_measure(beat_frames / 15.0, beats, tolerance=0.07) >= 0.9
     kick_frames = np.round(beats * 15).astype(int)
-    onset = features[:, 52]
+    onset = features[:, audio.BEAT_COLUMN - 1]
     assert onset[kick_frames].mean() > 2 * np.median(onset)
 
 
