@@ -7,7 +7,11 @@ Decoder (Eq. 3-4): a 3-layer LSTM whose initial hidden and cell states are drawn
 variety: another seed gives another dance - fed the previous pose (frame 0: the all-zero begin-of-pose);
 ``y_i = [h_i; z_i] W + b``. Optionally (``code_dim`` > 0, the ``small`` preset) each input also carries a
 choreography code drawn per segment (:mod:`stage1_pose.models.segment_latent`), because the decoder forgets its
-initial state within a few frames and seeds then give the same dance.
+initial state within a few frames and seeds then give the same dance; and (``beat_phase_input``) the frame's
+phase between two music beats (:mod:`stage1_pose.models.beat_clock`), because the music reaches the paper's LSTM
+only through its own fed-back poses and the moves then drift off the beat; and (``z_smoothing``) the music's
+term of the output is smoothed in time, because ``z_i`` follows the frame-to-frame changes of the features and made
+the body jitter.
 Curriculum (Sec. 3.3): decoder inputs alternate ``p`` of its own predictions with ``q`` ground-truth frames,
 ``p = f(epoch)`` growing with one of const, ⌊λt⌋, ⌊λt²⌋, ⌊λeᵗ⌋; L1 loss.
 
@@ -28,6 +32,7 @@ from torch import nn
 from stage1_pose.audio import BEAT_COLUMN
 from stage1_pose.errors import DancesynthError
 from stage1_pose.models.base import Batch, Stage1Method
+from stage1_pose.models.beat_clock import beat_phase, phase_features
 from stage1_pose.models.local_attention import LocalSelfAttention
 from stage1_pose.models.segment_latent import SegmentPosterior, beat_segments, fixed_segments, prior_codes
 from stage1_pose.skeleton import NUM_JOINTS
@@ -48,6 +53,9 @@ class DanceRevolutionConfig:
     ``code_dim`` numbers per segment of ``code_frames`` frames (``code_on_beats``: per interval between the
     beats of the features' beat one-hot), appended to every decoder input, learned with a
     posterior over the real dance and a KL term weighted ``kl_weight`` against the L1 loss; 0 is the paper.
+    ``beat_phase_input`` appends the beat phase (sin, cos) of each frame to every decoder input, and
+    ``z_smoothing`` > 0 smooths the music's term ``z_i W_z`` of the output over a Gaussian of that many frames
+    (neither is in the paper).
     """
 
     feature_dim: int = 438
@@ -73,14 +81,19 @@ class DanceRevolutionConfig:
     code_frames: int = 15
     code_on_beats: bool = False
     kl_weight: float = 0.01
+    beat_phase_input: bool = False
+    z_smoothing: float = 0.0
 
     def __post_init__(self) -> None:
         if self.curriculum not in SCHEDULES:
             raise DancesynthError(f"Unknown curriculum {self.curriculum!r}; choose one of {', '.join(SCHEDULES)}.")
         if self.code_dim < 0 or self.code_frames < 1 or self.kl_weight < 0:
             raise DancesynthError("code_dim must be >= 0, code_frames >= 1 and kl_weight >= 0.")
-        if self.code_on_beats and self.feature_dim <= BEAT_COLUMN:
-            raise DancesynthError("code_on_beats needs the dance_revolution features (their beat one-hot column).")
+        if self.z_smoothing < 0:
+            raise DancesynthError("z_smoothing must be >= 0 frames (0: the paper's per-frame output).")
+        if (self.code_on_beats or self.beat_phase_input) and self.feature_dim <= BEAT_COLUMN:
+            raise DancesynthError("code_on_beats and beat_phase_input need the dance_revolution features "
+                                  "(their beat one-hot column).")
 
     @classmethod
     def preset(cls, name: str) -> "DanceRevolutionConfig":
@@ -240,20 +253,38 @@ class LSTMStepper:
         return new_h, new_c
 
 
+def extra_dim(cfg: DanceRevolutionConfig) -> int:
+    """Numbers appended to each decoder input: the choreography code and the beat phase's (sin, cos)."""
+    return cfg.code_dim + (2 if cfg.beat_phase_input else 0)
+
+
+def smooth_in_time(x: torch.Tensor, sigma: float) -> torch.Tensor:
+    """``[B, T, C]`` smoothed along T by a Gaussian of ``sigma`` frames (edges repeated); ``sigma`` 0: ``x``."""
+    if sigma <= 0:
+        return x
+    radius = int(math.ceil(3 * sigma))
+    taps = torch.exp(-0.5 * (torch.arange(-radius, radius + 1, dtype=x.dtype, device=x.device) / sigma) ** 2)
+    kernel = (taps / taps.sum()).expand(x.shape[2], 1, -1)
+    padded = F.pad(x.transpose(1, 2), (radius, radius), mode="replicate")
+    return F.conv1d(padded, kernel, groups=x.shape[2]).transpose(1, 2)
+
+
 class DanceDecoder(nn.Module):
     """The 3-layer LSTM and the output layer ``y_i = [h_i; z_i] W + b``.
 
     The LSTM is one ``nn.LSTM`` (the same maths as stacked LSTM cells), so runs of known inputs - the
     ground-truth segments of the curriculum - go through it in one fused call; predicted frames step one
     at a time through :class:`LSTMStepper`. ``W`` is split into its ``h`` and ``z`` parts so the ``z``
-    part is one matmul for all frames.
+    part is one matmul for all frames. Every input is a pose with ``extra_dim`` per-frame numbers appended (the
+    choreography code and the beat phase, when configured).
     """
 
     def __init__(self, cfg: DanceRevolutionConfig) -> None:
         super().__init__()
-        self.lstm = nn.LSTM(POSE_DIM + cfg.code_dim, cfg.lstm_hidden, num_layers=cfg.lstm_layers, batch_first=True)
+        self.lstm = nn.LSTM(POSE_DIM + extra_dim(cfg), cfg.lstm_hidden, num_layers=cfg.lstm_layers, batch_first=True)
         self.out_h = nn.Linear(cfg.lstm_hidden, POSE_DIM, bias=False)
         self.out_z = nn.Linear(cfg.d_model, POSE_DIM)
+        self.z_smoothing = cfg.z_smoothing
 
     def initial_state(self, batch: int, device: torch.device,
                       generator: torch.Generator | None = None) -> tuple[torch.Tensor, torch.Tensor]:
@@ -264,23 +295,23 @@ class DanceDecoder(nn.Module):
         return state[0].contiguous(), state[1].contiguous()
 
     def forward(self, z: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor], targets: torch.Tensor,
-                predicted: list[bool], codes: torch.Tensor) -> torch.Tensor:
-        """Training: ``z [B, T, d_model]``, ``targets [B, T, 50]``, ``codes [B, T, code_dim]`` -> ``[B, T, 50]``.
+                predicted: list[bool], extras: torch.Tensor) -> torch.Tensor:
+        """Training: ``z [B, T, d_model]``, ``targets [B, T, 50]``, ``extras [B, T, extra_dim]`` -> ``[B, T, 50]``.
 
         Input i is the begin-of-pose (i = 0), the model's previous output where ``predicted[i]``, else
-        ``targets[:, i-1]``; each with ``codes[:, i]`` appended.
+        ``targets[:, i-1]``; each with ``extras[:, i]`` appended.
         """
         frames = z.shape[1]
-        zw = self.out_z(z)
+        zw = smooth_in_time(self.out_z(z), self.z_smoothing)
         shifted = torch.cat([targets.new_zeros(targets.shape[0], 1, POSE_DIM), targets[:, :-1]], dim=1)
-        shifted = torch.cat([shifted, codes], dim=2)
+        shifted = torch.cat([shifted, extras], dim=2)
         stepper = LSTMStepper(self.lstm)
         h, c = list(state[0].unbind(0)), list(state[1].unbind(0))
         outputs: list[torch.Tensor] = []
         i = 0
         while i < frames:
             if predicted[i]:
-                h, c = stepper.step(torch.cat([outputs[-1][:, -1], codes[:, i]], dim=1), h, c)
+                h, c = stepper.step(torch.cat([outputs[-1][:, -1], extras[:, i]], dim=1), h, c)
                 outputs.append((self.out_h(h[-1]) + zw[:, i])[:, None])
                 i += 1
                 continue
@@ -294,21 +325,21 @@ class DanceDecoder(nn.Module):
         return torch.cat(outputs, dim=1)
 
     @torch.no_grad()
-    def generate(self, z: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor], codes: torch.Tensor,
+    def generate(self, z: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor], extras: torch.Tensor,
                  stepper: LSTMStepper | None = None) -> torch.Tensor:
-        """Free running: ``z [B, T, d_model]``, ``codes [B, T, code_dim]`` -> poses ``[B, T, 50]``, each frame
+        """Free running: ``z [B, T, d_model]``, ``extras [B, T, extra_dim]`` -> poses ``[B, T, 50]``, each frame
         fed back as the next input.
 
         ``stepper`` (default: exact fp32 on the current weights) lets inference reuse prepared weights.
         """
         batch, frames, _ = z.shape
-        zw = self.out_z(z)
+        zw = smooth_in_time(self.out_z(z), self.z_smoothing)
         stepper = stepper or LSTMStepper(self.lstm)
         h, c = list(state[0].unbind(0)), list(state[1].unbind(0))
         out = z.new_empty(batch, frames, POSE_DIM)
         y = z.new_zeros(batch, POSE_DIM)
         for i in range(frames):
-            h, c = stepper.step(torch.cat([y, codes[:, i]], dim=1), h, c)
+            h, c = stepper.step(torch.cat([y, extras[:, i]], dim=1), h, c)
             y = self.out_h(h[-1]) + zw[:, i]
             out[:, i] = y
         return out
@@ -348,7 +379,8 @@ class DanceRevolution(Stage1Method):
             codes, kl = target.new_zeros(*target.shape[:2], 0), None
         else:
             codes, kl = self.posterior.sample(target, self.segments(batch.audio))
-        pred = self.decoder(z, state, target, predicted_inputs(frames, self.p, self.config.q), codes)
+        extras = self.decoder_extras(batch.audio, codes)
+        pred = self.decoder(z, state, target, predicted_inputs(frames, self.p, self.config.q), extras)
         l1 = F.l1_loss(pred, target)
         self.optimize("main", l1 if kl is None else l1 + self.config.kl_weight * kl)
         return {"l1": l1.item(), "p": float(self.p)} | ({} if kl is None else {"kl": kl.item()})
@@ -362,7 +394,7 @@ class DanceRevolution(Stage1Method):
         state = self.decoder.initial_state(batch, audio.device, generator)
         codes = prior_codes(self.segments(audio), self.config.code_dim, generator)
         stepper = self._stepper if audio.device.type == "cpu" else None
-        return self.decoder.generate(z, state, codes, stepper).reshape(batch, frames, NUM_JOINTS, 2)
+        return self.decoder.generate(z, state, self.decoder_extras(audio, codes), stepper).reshape(batch, frames, NUM_JOINTS, 2)
 
     def segments(self, audio: torch.Tensor) -> torch.Tensor:
         """Choreography-code segment ids ``[B, T]`` for standardised features ``[B, T, feature_dim]``: a new
@@ -371,6 +403,13 @@ class DanceRevolution(Stage1Method):
         if self.config.code_on_beats:
             return beat_segments(audio[..., BEAT_COLUMN] > 0)
         return fixed_segments(audio.shape[0], audio.shape[1], self.config.code_frames, audio.device)
+
+    def decoder_extras(self, audio: torch.Tensor, codes: torch.Tensor) -> torch.Tensor:
+        """``[B, T, extra_dim]``: per-frame ``codes [B, T, code_dim]`` and, with ``beat_phase_input``, the beat
+        phase features of the standardised ``audio [B, T, feature_dim]``."""
+        if not self.config.beat_phase_input:
+            return codes
+        return torch.cat([codes, phase_features(beat_phase(audio[..., BEAT_COLUMN] > 0))], dim=-1)
 
     def prepare_inference(self, precision: str = "fp32") -> None:
         """Freeze the current weights for fast decoding: ``"int8"`` quantises the LSTM (CPU only, about 3x

@@ -9,8 +9,10 @@ torch.set_num_threads(1)
 from stage1_pose.audio import BEAT_COLUMN
 from stage1_pose.errors import DancesynthError
 from stage1_pose.models.base import Batch
+from stage1_pose.models.beat_clock import beat_phase
 from stage1_pose.models.dance_revolution import (
-    DanceRevolution, DanceRevolutionConfig, LSTMStepper, curriculum_p, predicted_inputs, sinusoidal_encoding)
+    DanceRevolution, DanceRevolutionConfig, LSTMStepper, curriculum_p, predicted_inputs, sinusoidal_encoding,
+    smooth_in_time)
 
 TINY = DanceRevolutionConfig(feature_dim=12, d_model=16, heads=2, d_k=8, d_v=8, d_ff=32, layers=1, window=6,
                              dropout=0.0, lstm_hidden=32, lstm_layers=3, lam=0.5, q=3, lr=3e-3, window_frames=20)
@@ -56,18 +58,21 @@ def test_generate_shapes_seeds_and_length():
     assert torch.equal(a, b) and not torch.allclose(a, c)
 
 
-@pytest.mark.parametrize("code_dim", [0, 3])
-def test_fused_lstm_runs_and_stepper_agree(code_dim):
+@pytest.mark.parametrize("code_dim, beat_phase_input", [(0, False), (3, False), (3, True)])
+def test_fused_lstm_runs_and_stepper_agree(code_dim, beat_phase_input):
     # Feeding the free-running outputs back as "ground truth" must reproduce them, whichever decoder inputs
     # the curriculum marks as predicted: nn.LSTM runs and per-frame fused steps are the same maths.
-    model = DanceRevolution(dataclasses.replace(TINY, code_dim=code_dim)).eval()
-    z = model.encoder(torch.randn(2, 25, 12))
+    cfg = dataclasses.replace(TINY, feature_dim=BEAT_COLUMN + 2, code_dim=code_dim, beat_phase_input=beat_phase_input)
+    model = DanceRevolution(cfg).eval()
+    audio = song_with_beats([4, 7], 25)
+    z = model.encoder(audio.expand(2, -1, -1))
     state = model.decoder.initial_state(2, z.device, torch.Generator().manual_seed(0))
-    codes = torch.randn(2, 25, code_dim)
-    free = model.decoder.generate(z, state, codes)
+    extras = model.decoder_extras(audio.expand(2, -1, -1), torch.randn(2, 25, code_dim))
+    assert extras.shape == (2, 25, code_dim + 2 * beat_phase_input)
+    free = model.decoder.generate(z, state, extras)
     for p in (0, 2, 30):
         with torch.no_grad():
-            forced = model.decoder(z, state, free, predicted_inputs(25, p, 3), codes)
+            forced = model.decoder(z, state, free, predicted_inputs(25, p, 3), extras)
         torch.testing.assert_close(forced, free, rtol=1e-5, atol=1e-5)
 
 
@@ -128,3 +133,58 @@ def test_code_segments_follow_the_beat_one_hot():
     assert model.generate(audio, torch.Generator().manual_seed(0)).shape == (1, 12, 25, 2)
     with pytest.raises(DancesynthError, match="beat one-hot"):
         dataclasses.replace(TINY, code_dim=2, code_on_beats=True)
+    with pytest.raises(DancesynthError, match="beat one-hot"):
+        dataclasses.replace(TINY, beat_phase_input=True)
+    with pytest.raises(DancesynthError, match="z_smoothing"):
+        dataclasses.replace(TINY, z_smoothing=-1.0)
+
+
+def test_smoothing_in_time_keeps_the_mean_and_damps_frame_to_frame_changes():
+    x = torch.randn(2, 50, 3)
+    assert smooth_in_time(x, 0.0) is x
+    smooth = smooth_in_time(x, 2.0)
+    assert smooth.shape == x.shape
+    torch.testing.assert_close(smooth_in_time(torch.full((1, 9, 2), 3.0), 2.0), torch.full((1, 9, 2), 3.0))
+    assert smooth.diff(dim=1).abs().mean() < 0.3 * x.diff(dim=1).abs().mean()
+    assert (smooth.mean(dim=1) - x.mean(dim=1)).abs().max() < 0.1
+
+
+def song_with_beats(intervals: list[int], frames: int) -> torch.Tensor:
+    """``[1, frames, BEAT_COLUMN + 2]`` standardised features whose beat one-hot repeats ``intervals``."""
+    audio = torch.full((1, frames, BEAT_COLUMN + 2), -0.3)
+    at, i = 0, 0
+    while at < frames:
+        audio[0, at, BEAT_COLUMN] = 2.5
+        at, i = at + intervals[i % len(intervals)], i + 1
+    return audio
+
+
+def dance_on_the_beats(audio: torch.Tensor, shape: torch.Tensor) -> torch.Tensor:
+    """``[1, T, 25, 2]``: the body swings out to ``shape`` and back in every beat interval, still on the beats."""
+    phase = beat_phase(audio[..., BEAT_COLUMN] > 0)
+    return ((1 - torch.cos(2 * torch.pi * phase))[..., None] / 2 * shape).reshape(1, -1, 25, 2)
+
+
+def beat_timing_error(beat_phase_input: bool) -> float:
+    """Train free-running on one song with uneven beats; relative L1 error of the dance generated for a song
+    with other beats."""
+    torch.manual_seed(0)
+    shape = torch.randn(50) * 0.5
+    model = DanceRevolution(dataclasses.replace(TINY, feature_dim=BEAT_COLUMN + 2, window_frames=48,
+                                                beat_phase_input=beat_phase_input))
+    model._optimizers = model.configure_optimizers()
+    audio = song_with_beats([4, 7, 5, 8, 6], 48)
+    batch = Batch(audio, dance_on_the_beats(audio, shape), torch.zeros(1, dtype=torch.long))
+    for _ in range(150):
+        model.training_step(batch, epoch=100)
+    new_song = song_with_beats([6, 9, 5], 48)
+    wanted = dance_on_the_beats(new_song, shape)
+    return float((model.eval().generate(new_song, torch.Generator().manual_seed(0)) - wanted).abs().mean()
+                 / wanted.abs().mean())
+
+
+def test_beat_phase_input_times_the_moves_by_a_new_songs_beats():
+    # The paper's decoder hears the music only through the output layer and its own fed-back poses: it learns
+    # the training song's rhythm, not to follow the beats. With the beat phase it follows another song's beats.
+    assert beat_timing_error(True) < 0.25
+    assert beat_timing_error(False) > 0.4
