@@ -109,13 +109,15 @@ DANCE_REVOLUTION_PRESETS: dict[str, DanceRevolutionConfig] = {
     # n = 900, λ = 0.01, q = 10, Adam 1e-4, batch 32).
     "paper": DanceRevolutionConfig(),
     # CPU-sized: narrow layers; 30-s windows, because a decoder trained on 6-s windows drifted to a near-standstill
-    # after about 10 s of a 60-s dance (its state left the range it was trained in); p = ⌊t⌋ grows to 7x q in
-    # 70 epochs (15 minutes), so the decoder learns to continue from its own output. The paper's decoder gave
+    # after about 10 s of a 60-s dance (its state left the range it was trained in); p = ⌊t⌋ grows to 6x q in
+    # 60 epochs (7 minutes), so the decoder learns to continue from its own output. The paper's decoder gave
     # the same dance for every seed (it forgets its initial state), hence the choreography code, one per beat
-    # interval; KL weight 0.0005 (seeds 17-20 px apart) rather than 0.002 (7-19 px), measured in the README.
+    # interval; its moves were off the beat, hence the beat phase input and the smoothed music term. KL weight
+    # 0.002 and z smoothing 4 frames: the settings with beat hits above chance most often, measured in the README.
     "small": DanceRevolutionConfig(d_model=64, heads=4, d_k=16, d_v=16, d_ff=128, layers=2, window=30,
-                                   lstm_hidden=128, lam=1.0, lr=1e-3, batch_size=16, window_frames=450, epochs=70,
-                                   code_dim=8, code_on_beats=True, kl_weight=0.0005),
+                                   lstm_hidden=128, lam=1.0, lr=1e-3, batch_size=16, window_frames=450, epochs=60,
+                                   code_dim=8, code_on_beats=True, kl_weight=0.002, beat_phase_input=True,
+                                   z_smoothing=4.0),
 }
 
 
