@@ -218,7 +218,7 @@ class WindowDataset(torch.utils.data.Dataset):
     def __getitem__(self, i: int) -> dict:
         k, start = self._index[i]
         stop = start + self.window_frames
-        feats = np.asarray(self._audio[k][start:stop], np.float32)
+        feats = np.array(self._audio[k][start:stop], np.float32)  # a copy: the features may be a read-only memory map
         if self.stats is not None:
             feats = self.stats.standardize(feats)
         return {"audio": torch.from_numpy(feats), "poses": torch.from_numpy(self._poses[k][start:stop].copy()),
