@@ -396,7 +396,8 @@ class DanceRevolution(Stage1Method):
         state = self.decoder.initial_state(batch, audio.device, generator)
         codes = prior_codes(self.segments(audio), self.config.code_dim, generator)
         stepper = self._stepper if audio.device.type == "cpu" else None
-        return self.decoder.generate(z, state, self.decoder_extras(audio, codes), stepper).reshape(batch, frames, NUM_JOINTS, 2)
+        poses = self.decoder.generate(z, state, self.decoder_extras(audio, codes), stepper)
+        return poses.reshape(batch, frames, NUM_JOINTS, 2)
 
     def segments(self, audio: torch.Tensor) -> torch.Tensor:
         """Choreography-code segment ids ``[B, T]`` for standardised features ``[B, T, feature_dim]``: a new

@@ -58,6 +58,16 @@ def test_generate_shapes_seeds_and_length():
     assert torch.equal(a, b) and not torch.allclose(a, c)
 
 
+def song_with_beats(intervals: list[int], frames: int) -> torch.Tensor:
+    """``[1, frames, BEAT_COLUMN + 2]`` standardised features whose beat one-hot repeats ``intervals``."""
+    audio = torch.full((1, frames, BEAT_COLUMN + 2), -0.3)
+    at, i = 0, 0
+    while at < frames:
+        audio[0, at, BEAT_COLUMN] = 2.5
+        at, i = at + intervals[i % len(intervals)], i + 1
+    return audio
+
+
 @pytest.mark.parametrize("code_dim, beat_phase_input", [(0, False), (3, False), (3, True)])
 def test_fused_lstm_runs_and_stepper_agree(code_dim, beat_phase_input):
     # Feeding the free-running outputs back as "ground truth" must reproduce them, whichever decoder inputs
@@ -147,16 +157,6 @@ def test_smoothing_in_time_keeps_the_mean_and_damps_frame_to_frame_changes():
     torch.testing.assert_close(smooth_in_time(torch.full((1, 9, 2), 3.0), 2.0), torch.full((1, 9, 2), 3.0))
     assert smooth.diff(dim=1).abs().mean() < 0.3 * x.diff(dim=1).abs().mean()
     assert (smooth.mean(dim=1) - x.mean(dim=1)).abs().max() < 0.1
-
-
-def song_with_beats(intervals: list[int], frames: int) -> torch.Tensor:
-    """``[1, frames, BEAT_COLUMN + 2]`` standardised features whose beat one-hot repeats ``intervals``."""
-    audio = torch.full((1, frames, BEAT_COLUMN + 2), -0.3)
-    at, i = 0, 0
-    while at < frames:
-        audio[0, at, BEAT_COLUMN] = 2.5
-        at, i = at + intervals[i % len(intervals)], i + 1
-    return audio
 
 
 def dance_on_the_beats(audio: torch.Tensor, shape: torch.Tensor) -> torch.Tensor:
