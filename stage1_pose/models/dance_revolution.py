@@ -255,6 +255,12 @@ class LSTMStepper:
         return new_h, new_c
 
 
+def beat_flags(audio: torch.Tensor) -> torch.Tensor:
+    """Beat frames ``[B, T]`` (bool) of standardised features ``[B, T, feature_dim]``: where the beat one-hot
+    column is above its mean."""
+    return audio[..., BEAT_COLUMN] > 0
+
+
 def extra_dim(cfg: DanceRevolutionConfig) -> int:
     """Numbers appended to each decoder input: the choreography code and the beat phase's (sin, cos)."""
     return cfg.code_dim + (2 if cfg.beat_phase_input else 0)
@@ -401,10 +407,9 @@ class DanceRevolution(Stage1Method):
 
     def segments(self, audio: torch.Tensor) -> torch.Tensor:
         """Choreography-code segment ids ``[B, T]`` for standardised features ``[B, T, feature_dim]``: a new
-        segment at every beat of the beat one-hot (a beat frame is above the column's mean) or every
-        ``code_frames`` frames."""
+        segment at every beat of the beat one-hot (:func:`beat_flags`) or every ``code_frames`` frames."""
         if self.config.code_on_beats:
-            return beat_segments(audio[..., BEAT_COLUMN] > 0)
+            return beat_segments(beat_flags(audio))
         return fixed_segments(audio.shape[0], audio.shape[1], self.config.code_frames, audio.device)
 
     def decoder_extras(self, audio: torch.Tensor, codes: torch.Tensor) -> torch.Tensor:
@@ -412,7 +417,7 @@ class DanceRevolution(Stage1Method):
         phase features of the standardised ``audio [B, T, feature_dim]``."""
         if not self.config.beat_phase_input:
             return codes
-        return torch.cat([codes, phase_features(beat_phase(audio[..., BEAT_COLUMN] > 0))], dim=-1)
+        return torch.cat([codes, phase_features(beat_phase(beat_flags(audio)))], dim=-1)
 
     def prepare_inference(self, precision: str = "fp32") -> None:
         """Freeze the current weights for fast decoding: ``"int8"`` quantises the LSTM (CPU only, about 3x

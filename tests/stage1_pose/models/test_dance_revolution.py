@@ -11,8 +11,8 @@ from stage1_pose.errors import DancesynthError
 from stage1_pose.models.base import Batch
 from stage1_pose.models.beat_clock import beat_phase
 from stage1_pose.models.dance_revolution import (
-    DanceRevolution, DanceRevolutionConfig, LSTMStepper, curriculum_p, predicted_inputs, sinusoidal_encoding,
-    smooth_in_time)
+    DanceRevolution, DanceRevolutionConfig, LSTMStepper, beat_flags, curriculum_p, predicted_inputs,
+    sinusoidal_encoding, smooth_in_time)
 
 TINY = DanceRevolutionConfig(feature_dim=12, d_model=16, heads=2, d_k=8, d_v=8, d_ff=32, layers=1, window=6,
                              dropout=0.0, lstm_hidden=32, lstm_layers=3, lam=0.5, q=3, lr=3e-3, window_frames=20)
@@ -161,7 +161,7 @@ def test_smoothing_in_time_keeps_the_mean_and_damps_frame_to_frame_changes():
 
 def dance_on_the_beats(audio: torch.Tensor, shape: torch.Tensor) -> torch.Tensor:
     """``[1, T, 25, 2]``: the body swings out to ``shape`` and back in every beat interval, still on the beats."""
-    phase = beat_phase(audio[..., BEAT_COLUMN] > 0)
+    phase = beat_phase(beat_flags(audio))
     return ((1 - torch.cos(2 * torch.pi * phase))[..., None] / 2 * shape).reshape(1, -1, 25, 2)
 
 
