@@ -11,7 +11,8 @@ initial state within a few frames and seeds then give the same dance; and (``bea
 phase between two music beats (:mod:`stage1_pose.models.beat_clock`), because the music reaches the paper's LSTM
 only through its own fed-back poses and the moves then drift off the beat; and (``z_smoothing``) the music's
 term of the output is smoothed in time, because ``z_i`` follows the frame-to-frame changes of the features and made
-the body jitter.
+the body jitter; and (``speed_weight``) the loss also compares each joint's speed with the real dance's, because
+with the pose loss alone the dances neither slowed down on the beat nor moved at the real dances' speed.
 Curriculum (Sec. 3.3): decoder inputs alternate ``p`` of its own predictions with ``q`` ground-truth frames,
 ``p = f(epoch)`` growing with one of const, ⌊λt⌋, ⌊λt²⌋, ⌊λeᵗ⌋; L1 loss.
 
@@ -34,7 +35,8 @@ from stage1_pose.errors import DancesynthError
 from stage1_pose.models.base import Batch, Stage1Method
 from stage1_pose.models.beat_clock import beat_phase, phase_features
 from stage1_pose.models.local_attention import LocalSelfAttention
-from stage1_pose.models.segment_latent import SegmentPosterior, beat_segments, fixed_segments, prior_codes
+from stage1_pose.models.segment_latent import (SegmentPosterior, beat_segments, fixed_segments, kl_with_free_bits,
+                                               prior_codes)
 from stage1_pose.skeleton import NUM_JOINTS
 
 POSE_DIM = NUM_JOINTS * 2
@@ -53,6 +55,10 @@ class DanceRevolutionConfig:
     ``code_dim`` numbers per segment of ``code_frames`` frames (``code_on_beats``: per interval between the
     beats of the features' beat one-hot), appended to every decoder input, learned with a
     posterior over the real dance and a KL term weighted ``kl_weight`` against the L1 loss; 0 is the paper.
+    ``free_bits``: the first ``free_bits`` nats of each code number's KL cost nothing (Kingma et al. 2016).
+    ``speed_weight`` adds an L1 loss on each joint's speed, the length of its frame-to-frame change: how fast
+    to move at each moment, without the pull towards standing still that an L1 loss on the changes themselves
+    has when the direction of the next move is uncertain (the median of moves in all directions is no move).
     ``beat_phase_input`` appends the beat phase (sin, cos) of each frame to every decoder input, and
     ``z_smoothing`` > 0 smooths the music's term ``z_i W_z`` of the output over a Gaussian of that many frames
     (neither is in the paper).
@@ -81,14 +87,18 @@ class DanceRevolutionConfig:
     code_frames: int = 15
     code_on_beats: bool = False
     kl_weight: float = 0.01
+    free_bits: float = 0.0
+    speed_weight: float = 0.0
     beat_phase_input: bool = False
     z_smoothing: float = 0.0
 
     def __post_init__(self) -> None:
         if self.curriculum not in SCHEDULES:
             raise DancesynthError(f"Unknown curriculum {self.curriculum!r}; choose one of {', '.join(SCHEDULES)}.")
-        if self.code_dim < 0 or self.code_frames < 1 or self.kl_weight < 0:
-            raise DancesynthError("code_dim must be >= 0, code_frames >= 1 and kl_weight >= 0.")
+        if self.code_dim < 0 or self.code_frames < 1 or self.kl_weight < 0 or self.free_bits < 0:
+            raise DancesynthError("code_dim must be >= 0, code_frames >= 1, kl_weight >= 0 and free_bits >= 0.")
+        if self.speed_weight < 0:
+            raise DancesynthError("speed_weight must be >= 0 (0: the paper's L1 loss on poses only).")
         if self.z_smoothing < 0:
             raise DancesynthError("z_smoothing must be >= 0 frames (0: the paper's per-frame output).")
         if (self.code_on_beats or self.beat_phase_input) and self.feature_dim <= BEAT_COLUMN:
@@ -112,12 +122,13 @@ DANCE_REVOLUTION_PRESETS: dict[str, DanceRevolutionConfig] = {
     # after about 10 s of a 60-s dance (its state left the range it was trained in); p = ⌊t⌋ grows to 6x q in
     # 60 epochs (7 minutes), so the decoder learns to continue from its own output. The paper's decoder gave
     # the same dance for every seed (it forgets its initial state), hence the choreography code, one per beat
-    # interval; its moves were off the beat, hence the beat phase input and the smoothed music term. KL weight
-    # 0.002 and z smoothing 4 frames: the settings with beat hits above chance most often, measured in the README.
+    # interval; its moves were off the beat, hence the beat phase input and the smoothed music term; it moved too
+    # fast and at an even pace through each beat, hence the speed loss; free bits let the code be used earlier.
+    # Weights and sizes: the settings measured best in the README (Known limitations).
     "small": DanceRevolutionConfig(d_model=64, heads=4, d_k=16, d_v=16, d_ff=128, layers=2, window=30,
                                    lstm_hidden=128, lam=1.0, lr=1e-3, batch_size=16, window_frames=450, epochs=60,
-                                   code_dim=8, code_on_beats=True, kl_weight=0.002, beat_phase_input=True,
-                                   z_smoothing=4.0),
+                                   code_dim=8, code_on_beats=True, kl_weight=0.002, free_bits=0.25,
+                                   speed_weight=5.0, beat_phase_input=True, z_smoothing=4.0),
 }
 
 
@@ -261,6 +272,13 @@ def beat_flags(audio: torch.Tensor) -> torch.Tensor:
     return audio[..., BEAT_COLUMN] > 0
 
 
+def joint_speeds(poses: torch.Tensor) -> torch.Tensor:
+    """``[B, T, 50]`` flattened poses -> ``[B, T - 1, 25]`` each joint's distance moved per frame (model units),
+    with a gradient also where a joint stands still."""
+    step = poses.diff(dim=1).unflatten(2, (NUM_JOINTS, 2))
+    return (step.pow(2).sum(-1) + 1e-8).sqrt()
+
+
 def extra_dim(cfg: DanceRevolutionConfig) -> int:
     """Numbers appended to each decoder input: the choreography code and the beat phase's (sin, cos)."""
     return cfg.code_dim + (2 if cfg.beat_phase_input else 0)
@@ -390,8 +408,16 @@ class DanceRevolution(Stage1Method):
         extras = self.decoder_extras(batch.audio, codes)
         pred = self.decoder(z, state, target, predicted_inputs(frames, self.p, self.config.q), extras)
         l1 = F.l1_loss(pred, target)
-        self.optimize("main", l1 if kl is None else l1 + self.config.kl_weight * kl)
-        return {"l1": l1.item(), "p": float(self.p)} | ({} if kl is None else {"kl": kl.item()})
+        loss, scalars = l1, {"l1": l1.item(), "p": float(self.p)}
+        if kl is not None:
+            loss = loss + self.config.kl_weight * kl_with_free_bits(kl, self.config.free_bits)
+            scalars["kl"] = kl.mean().item()
+        if self.config.speed_weight:
+            speed = F.l1_loss(joint_speeds(pred), joint_speeds(target))
+            loss = loss + self.config.speed_weight * speed
+            scalars["speed"] = speed.item()
+        self.optimize("main", loss)
+        return scalars
 
     @torch.no_grad()
     def generate(self, audio: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:

@@ -44,8 +44,17 @@ def prior_codes(ids: torch.Tensor, dim: int, generator: torch.Generator | None =
 
 
 def kl_to_standard_normal(mean: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
-    """Mean over all elements of ``KL(N(mean, exp(logvar)) || N(0, 1))``: nats per code number."""
-    return 0.5 * (mean ** 2 + logvar.exp() - 1.0 - logvar).mean()
+    """``[N, dim]`` Gaussians -> ``[dim]``: ``KL(N(mean, exp(logvar)) || N(0, 1))`` of each code number, in nats
+    per segment, averaged over the N segments."""
+    return 0.5 * (mean ** 2 + logvar.exp() - 1.0 - logvar).mean(dim=0)
+
+
+def kl_with_free_bits(kl: torch.Tensor, free_bits: float) -> torch.Tensor:
+    """``[dim]`` KL of each code number (nats) -> the KL cost (mean over numbers) in which each number's first
+    ``free_bits`` nats are free (Kingma et al. 2016). Below that a number is not pushed towards the prior, so the
+    posterior is not driven to carry nothing before the decoder has learned to use the code (posterior
+    collapse); 0 is the plain KL."""
+    return kl.clamp_min(free_bits).mean()
 
 
 class SegmentPosterior(nn.Module):
@@ -69,8 +78,8 @@ class SegmentPosterior(nn.Module):
         return mean, logvar.clamp(-10.0, 10.0), sizes > 0
 
     def sample(self, poses: torch.Tensor, ids: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Reparameterised per-frame codes ``[B, T, dim]`` and the KL (nats per code number) of the segments
-        present."""
+        """Reparameterised per-frame codes ``[B, T, dim]`` and the KL ``[dim]`` of each code number (nats per
+        segment, averaged over the segments present)."""
         mean, logvar, present = self(poses, ids)
         codes = mean + torch.randn_like(mean) * (0.5 * logvar).exp()
         return per_frame(codes, ids), kl_to_standard_normal(mean[present], logvar[present])

@@ -11,7 +11,7 @@ from stage1_pose.errors import DancesynthError
 from stage1_pose.models.base import Batch
 from stage1_pose.models.beat_clock import beat_phase
 from stage1_pose.models.dance_revolution import (
-    DanceRevolution, DanceRevolutionConfig, LSTMStepper, beat_flags, curriculum_p, predicted_inputs,
+    DanceRevolution, DanceRevolutionConfig, LSTMStepper, beat_flags, curriculum_p, joint_speeds, predicted_inputs,
     sinusoidal_encoding, smooth_in_time)
 
 TINY = DanceRevolutionConfig(feature_dim=12, d_model=16, heads=2, d_k=8, d_v=8, d_ff=32, layers=1, window=6,
@@ -130,9 +130,31 @@ def test_choreography_code_makes_the_seed_choose_the_dance(mirrored_move, dances
 
 
 def test_code_settings_are_checked():
-    for field, value in (("code_dim", -1), ("code_frames", 0), ("kl_weight", -0.1)):
+    for field, value in (("code_dim", -1), ("code_frames", 0), ("kl_weight", -0.1), ("free_bits", -0.1)):
         with pytest.raises(DancesynthError, match="code_dim must be"):
             dataclasses.replace(TINY, **{field: value})
+    with pytest.raises(DancesynthError, match="speed_weight must be"):
+        dataclasses.replace(TINY, speed_weight=-1.0)
+
+
+def test_joint_speeds_are_distances_per_frame_with_a_gradient_at_rest():
+    poses = torch.zeros(1, 3, 25, 2)
+    poses[0, 1:, 1] = torch.tensor([3.0, 4.0])  # joint 1 moves 5 units into frame 1, then rests
+    poses.requires_grad_()
+    speeds = joint_speeds(poses.flatten(2))
+    assert speeds.shape == (1, 2, 25)
+    torch.testing.assert_close(speeds[0, :, 1], torch.tensor([5.0, 0.0]), atol=1e-3, rtol=0)
+    speeds.sum().backward()
+    assert torch.isfinite(poses.grad).all()
+
+
+def test_speed_loss_and_free_bits_train_with_the_decoder():
+    torch.manual_seed(0)
+    model = DanceRevolution(dataclasses.replace(TINY, code_dim=3, code_frames=5, free_bits=0.5, speed_weight=3.0))
+    model._optimizers = model.configure_optimizers()
+    poses = torch.randn(2, 20, 25, 2)
+    scalars = model.training_step(Batch(torch.randn(2, 20, 12), poses, torch.zeros(2, dtype=torch.long)), epoch=0)
+    assert {"l1", "kl", "speed"} <= scalars.keys() and scalars["kl"] > 0 and scalars["speed"] > 0
 
 
 def test_code_segments_follow_the_beat_one_hot():

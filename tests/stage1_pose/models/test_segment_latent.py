@@ -2,7 +2,8 @@ import pytest
 import torch
 
 from stage1_pose.models.segment_latent import (SegmentPosterior, beat_segments, fixed_segments,
-                                               kl_to_standard_normal, per_frame, prior_codes)
+                                               kl_to_standard_normal, kl_with_free_bits, per_frame,
+                                               prior_codes)
 
 
 def test_codes_are_held_through_their_segment():
@@ -33,9 +34,21 @@ def test_prior_codes_follow_the_seed_and_change_per_segment():
 
 def test_kl_is_zero_only_for_the_standard_normal():
     zero = torch.zeros(3, 4)
-    assert kl_to_standard_normal(zero, zero) == 0
-    assert kl_to_standard_normal(zero + 1, zero) == pytest.approx(0.5)
-    assert kl_to_standard_normal(zero, zero - 2) > 0
+    assert torch.equal(kl_to_standard_normal(zero, zero), torch.zeros(4))
+    assert kl_to_standard_normal(zero + 1, zero).tolist() == pytest.approx([0.5] * 4)
+    assert (kl_to_standard_normal(zero, zero - 2) > 0).all()
+    means = torch.zeros(3, 4)
+    means[:, 1] = 2.0
+    assert kl_to_standard_normal(means, zero).tolist() == pytest.approx([0.0, 2.0, 0.0, 0.0])
+
+
+def test_free_bits_leave_code_numbers_under_them_unpushed():
+    kl = torch.tensor([0.1, 0.5, 2.0], requires_grad=True)
+    assert kl_with_free_bits(kl, 0.0).item() == pytest.approx(2.6 / 3)
+    cost = kl_with_free_bits(kl, 0.25)
+    assert cost.item() == pytest.approx(2.75 / 3)
+    cost.backward()
+    assert kl.grad.tolist() == pytest.approx([0.0, 1 / 3, 1 / 3])
 
 
 def test_posterior_gives_one_code_per_segment_and_a_differentiable_sample():
@@ -49,7 +62,7 @@ def test_posterior_gives_one_code_per_segment_and_a_differentiable_sample():
     assert mean.shape == logvar.shape == (2, 4, 3)
     assert present.tolist() == [[True] * 4, [True, True, False, False]]
     codes, kl = posterior.sample(poses, ids)
-    assert codes.shape == (2, 40, 3) and kl.ndim == 0
+    assert codes.shape == (2, 40, 3) and kl.shape == (3,)
     assert torch.equal(codes[0, 10], codes[0, 19]) and not torch.equal(codes[0, 19], codes[0, 20])
-    (codes.sum() + kl).backward()
+    (codes.sum() + kl.sum()).backward()
     assert all(p.grad is not None for p in posterior.parameters())
