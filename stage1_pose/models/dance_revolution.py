@@ -120,11 +120,11 @@ DANCE_REVOLUTION_PRESETS: dict[str, DanceRevolutionConfig] = {
     "paper": DanceRevolutionConfig(),
     # CPU-sized: narrow layers; 30-s windows, because a decoder trained on 6-s windows drifted to a near-standstill
     # after about 10 s of a 60-s dance (its state left the range it was trained in); p = ⌊t⌋ grows to 6x q in
-    # 60 epochs (7 minutes), so the decoder learns to continue from its own output. The paper's decoder gave
+    # 60 epochs (7-12 minutes), so the decoder learns to continue from its own output. The paper's decoder gave
     # the same dance for every seed (it forgets its initial state), hence the choreography code, one per beat
     # interval; its moves were off the beat, hence the beat phase input and the smoothed music term; it moved too
-    # fast and at an even pace through each beat, hence the speed loss; free bits let the code be used earlier.
-    # Weights and sizes: the settings measured best in the README (Known limitations).
+    # fast, fastest early in each beat interval rather than mid-beat, hence the speed loss. Weights and free bits:
+    # the settings measured best in the README (Known limitations).
     "small": DanceRevolutionConfig(d_model=64, heads=4, d_k=16, d_v=16, d_ff=128, layers=2, window=30,
                                    lstm_hidden=128, lam=1.0, lr=1e-3, batch_size=16, window_frames=450, epochs=60,
                                    code_dim=8, code_on_beats=True, kl_weight=0.002, free_bits=0.25,
