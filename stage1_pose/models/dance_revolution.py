@@ -120,7 +120,7 @@ DANCE_REVOLUTION_PRESETS: dict[str, DanceRevolutionConfig] = {
     "paper": DanceRevolutionConfig(),
     # CPU-sized: narrow layers; 30-s windows, because a decoder trained on 6-s windows drifted to a near-standstill
     # after about 10 s of a 60-s dance (its state left the range it was trained in); p = ⌊t⌋ grows to 6x q in
-    # 60 epochs (7-12 minutes), so the decoder learns to continue from its own output. The paper's decoder gave
+    # 60 epochs (8-16 minutes), so the decoder learns to continue from its own output. The paper's decoder gave
     # the same dance for every seed (it forgets its initial state), hence the choreography code, one per beat
     # interval; its moves were off the beat, hence the beat phase input and the smoothed music term; it moved too
     # fast, fastest early in each beat interval rather than mid-beat, hence the speed loss. Weights and free bits:
