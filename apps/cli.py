@@ -12,7 +12,7 @@ import pkgutil
 import sys
 
 from apps import commands
-from stage1_pose.errors import DancesynthError
+from dancesynth.core.errors import DancesynthError
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -21,16 +21,16 @@ from typing import Any
 import numpy as np
 import torch
 
-from apps.compose import SONG_SR, dance
+from apps.pipeline import SONG_SR, dance
 from stage1_pose.data.dataset import Clip, DanceDataset
 from stage1_pose.data.make_dataset import make_dataset
-from stage1_pose.errors import DancesynthError
-from stage1_pose.fileio import atomic_path
-from stage1_pose.kinematic_beats import kinematic_beats
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import atomic_path
+from dancesynth.core.motion import kinematic_beats
 from stage1_pose.generate import generate_dance, load_pose_model
-from stage1_pose.media import load_song, read_frames
+from dancesynth.core.media import load_song, read_frames
 from stage1_pose.metrics import beat_align_score, beat_coverage, beat_hit_rate
-from stage1_pose.skeleton import PoseSequence, body_scale, resample
+from dancesynth.core.skeleton import PoseSequence, body_scale, resample
 from stage1_pose.train import TrainerConfig, train
 from stage2_video.synthetic_person import appearance_preset, write_person_video
 from stage2_video.train import TrainOptions, train_video

@@ -19,9 +19,9 @@ import numpy as np
 from stage1_pose.data.importers import add_clip_samples, song_id
 from stage1_pose.data.layout import MANIFEST, read_manifest
 from stage1_pose.data.synth_music import SAMPLE_RATE
-from stage1_pose.errors import DancesynthError
-from stage1_pose.media import load_song
-from stage1_pose.skeleton import PoseSequence
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.media import load_song
+from dancesynth.core.skeleton import PoseSequence
 
 VIDEO_SUFFIXES = (".mp4", ".mov", ".m4v", ".mkv", ".avi", ".webm")
 

@@ -28,10 +28,10 @@ import numpy as np
 from stage1_pose import audio
 from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.generate import generate_dance, generate_from_features, load_pose_model
-from stage1_pose.kinematic_beats import kinematic_beats
+from dancesynth.core.motion import kinematic_beats
 from stage1_pose.metrics import beat_hit_rate
-from stage1_pose.models.dancing2music import absolute_positions
-from stage1_pose.skeleton import PoseSequence, interpolate_missing, normalize
+from stage1_pose.models.dancing2music.model import absolute_positions
+from dancesynth.core.skeleton import PoseSequence, interpolate_missing, normalize
 
 
 def frame_jumps(seq: PoseSequence) -> np.ndarray:

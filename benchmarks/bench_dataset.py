@@ -25,8 +25,8 @@ import numpy as np
 from stage1_pose.audio import beat_f_measure, beat_times
 from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.data.make_dataset import make_dataset
-from stage1_pose.kinematic_beats import kinematic_beats, velocity_minimum_beats
-from stage1_pose.skeleton import normalize
+from dancesynth.core.motion import kinematic_beats, velocity_minimum_beats
+from dancesynth.core.skeleton import normalize
 
 
 def _hit_rate(found: np.ndarray, beat_frames: np.ndarray) -> float:

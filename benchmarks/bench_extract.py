@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 import skimage.data
 
-from stage1_pose.media import probe_video, read_frames, write_video
+from dancesynth.core.media import probe_video, read_frames, write_video
 from stage2_video.extract import BlazePose, ExtractConfig, extract_poses
 from stage2_video.smoothing import SmoothingConfig
 from stage2_video.tracking import Box, torso

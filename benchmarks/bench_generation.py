@@ -22,7 +22,7 @@ FPS = 15
 def run_case(seconds: float, precision: str, threads: int) -> None:
     import torch
 
-    from stage1_pose.models.dance_revolution import DanceRevolution, DanceRevolutionConfig
+    from stage1_pose.models.dance_revolution.model import DanceRevolution, DanceRevolutionConfig
     torch.set_num_threads(threads)
     torch.manual_seed(0)
     model = DanceRevolution(DanceRevolutionConfig.preset("paper")).eval()

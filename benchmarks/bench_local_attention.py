@@ -21,7 +21,7 @@ FPS = 15
 def run_case(mode: str, frames: int, threads: int) -> None:
     import torch
 
-    from stage1_pose.models.dance_revolution import DanceRevolutionConfig, MusicEncoder
+    from stage1_pose.models.dance_revolution.model import DanceRevolutionConfig, MusicEncoder
     torch.set_num_threads(threads)
     torch.manual_seed(0)
     encoder = MusicEncoder(DanceRevolutionConfig.preset("paper")).eval()

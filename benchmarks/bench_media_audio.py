@@ -13,8 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-from stage1_pose import audio, media
-from stage1_pose.skeleton import JOINT_INDEX, NUM_JOINTS, PoseSequence
+from dancesynth.core import media
+from stage1_pose import audio
+from dancesynth.core.skeleton import JOINT_INDEX, NUM_JOINTS, PoseSequence
 from stage2_video.synthetic_person import PersonAppearance, render_person
 
 SR = 44100

@@ -11,11 +11,11 @@ import time
 
 import torch
 
-from stage1_pose.device import resolve_device
+from dancesynth.core.device import resolve_device
 from stage1_pose.models.base import Batch
-from stage1_pose.models.ren import ABLATIONS, RenConfig, RenMethod
-from stage1_pose.models.stgcn import STGCN, STGCNConfig
-from stage1_pose.perceptual import PosePerceptualLoss
+from stage1_pose.models.ren.model import ABLATIONS, RenConfig, RenMethod
+from stage1_pose.models.ren.stgcn import STGCN, STGCNConfig
+from stage1_pose.models.ren.perceptual import PosePerceptualLoss
 
 FPS = 15
 

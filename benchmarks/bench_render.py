@@ -3,7 +3,7 @@ residual blocks compiled by OpenVINO).
 
 For each preset and size, renders the same pose sequence twice through the full per-frame path (label map,
 generator conditioned on the previous frame, uint8 frame) with the plain eval-mode forward (the reference)
-and with :func:`stage2_video.infer.optimize_generator` (what `dancesynth render` uses). Both are warmed up, then
+and with :func:`stage2_video.render.optimize_generator` (what `dancesynth render` uses). Both are warmed up, then
 timed in ``--rounds`` interleaved rounds (plain, optimised, optimised, plain, ...) so load changes on the shared
 CPU hit both alike; the median round is reported. Prints frames/s, the speed-up (ratio of the medians), the
 spread of the rounds and the largest pixel difference (0-255 levels) between
@@ -23,11 +23,11 @@ import time
 import numpy as np
 import torch
 
-from stage1_pose.skeleton import PoseSequence
+from dancesynth.core.skeleton import PoseSequence
 from stage2_video.data import to_image
-from stage2_video.infer import AppearanceModel, optimize_generator, render_frames
+from stage2_video.render import AppearanceModel, optimize_generator, render_frames
 from stage2_video.models.pix2pixhd import Pix2PixHD, preset
-from stage2_video.render import label_maps, whole_canvas
+from stage2_video.framing import label_maps, whole_canvas
 
 
 def dancing_poses(frames: int, size: int) -> PoseSequence:

@@ -23,9 +23,9 @@ import numpy as np
 
 from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.generate import generate_dance, load_pose_model
-from stage1_pose.kinematic_beats import kinematic_beats
+from dancesynth.core.motion import kinematic_beats
 from stage1_pose.metrics import beat_hit_rate
-from stage1_pose.skeleton import ROOT
+from dancesynth.core.skeleton import ROOT
 
 
 def mean_speed(xy: np.ndarray, fps: float) -> float:

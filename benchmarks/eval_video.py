@@ -22,15 +22,15 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
-from stage1_pose.checkpoint import load_meta
-from stage1_pose.media import VideoWriter
-from stage1_pose.skeleton import JOINT_INDEX, PoseSequence
+from dancesynth.core.checkpoint import load_meta
+from dancesynth.core.media import VideoWriter
+from dancesynth.core.skeleton import JOINT_INDEX, PoseSequence
 from stage2_video.data import POSES_FILE, frames_file, split_ranges
 from stage2_video.extract import extract_frames
-from stage2_video.infer import load_appearance_model, render_frames
+from stage2_video.render import load_appearance_model, render_frames
 from stage2_video.models.pix2pixhd import Pix2PixHDConfig
 from stage2_video.quality import pck, psnr, ssim
-from stage2_video.render import Framing
+from stage2_video.framing import Framing
 from stage2_video.train import KIND
 
 

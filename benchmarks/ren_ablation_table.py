@@ -17,7 +17,7 @@ import numpy as np
 
 from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.generate import generate_from_features, load_pose_model
-from stage1_pose.skeleton import normalize
+from dancesynth.core.skeleton import normalize
 
 
 def _speed(xy: np.ndarray, fps: float) -> np.ndarray:

@@ -13,7 +13,7 @@ from collections.abc import Callable, Iterator
 
 import numpy as np
 
-from stage1_pose.errors import DancesynthError
+from dancesynth.core.errors import DancesynthError
 
 ANALYSIS_SR = 15360
 WAVEFORM_SR = 15360

@@ -26,10 +26,10 @@ from tqdm import tqdm
 from stage1_pose import metrics
 from stage1_pose.audio import num_pose_frames
 from stage1_pose.data.dataset import DanceDataset
-from stage1_pose.errors import DancesynthError
-from stage1_pose.fileio import atomic_path
-from stage1_pose.kinematic_beats import kinematic_beats, velocity_minimum_beats
-from stage1_pose.skeleton import PoseSequence, resample
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import atomic_path
+from dancesynth.core.motion import kinematic_beats, velocity_minimum_beats
+from dancesynth.core.skeleton import PoseSequence, resample
 from stage1_pose.style_classifier import LoadedStyleClassifier
 
 MUSIC_FEATURE_KIND = "dancing2music"
@@ -335,7 +335,7 @@ class EvaluationOptions:
 def obtain_classifier(ds: DanceDataset, options: EvaluationOptions) -> tuple[LoadedStyleClassifier, str]:
     """The classifier given by ``options.classifier``, else the one cached in ``DATA/style_classifier/PRESET``
     (trained there first when missing or trained on other clips). Returns it and the folder it lives in."""
-    from stage1_pose.device import resolve_device
+    from dancesynth.core.device import resolve_device
     from stage1_pose.style_classifier import (PRESETS, load_style_classifier, save_style_classifier,
                                               train_on_dataset)
 
@@ -354,8 +354,8 @@ def obtain_classifier(ds: DanceDataset, options: EvaluationOptions) -> tuple[Loa
 
 def _beat_figure(songs: list[Song], dances: dict[str, PoseSequence], out_dir: Path, seconds: float) -> None:
     from stage1_pose.audio import onset_strength
-    from stage1_pose.kinematic_beats import kinematic_offsets
-    from stage1_pose.plots import plot_beat_alignment
+    from dancesynth.core.motion import kinematic_offsets
+    from dancesynth.core.plots import plot_beat_alignment
 
     song = songs[0]
     fps = song.real.fps
@@ -376,8 +376,8 @@ def run_evaluation(data_dir: str | os.PathLike, model_dirs: list[str], out_dir: 
     Writes ``report.md``, ``report.json``, ``fid_over_time.png``, ``beat_alignment.png`` and
     ``videos/<row>.mp4`` (first test song, ``video_seconds`` long, with the song) into ``out_dir``.
     """
-    from stage1_pose.draw import write_skeleton_video
-    from stage1_pose.plots import plot_fid_over_time
+    from dancesynth.core.draw import write_skeleton_video
+    from dancesynth.core.plots import plot_fid_over_time
 
     if options.trials < 1 or options.seconds <= 0:
         raise DancesynthError("--trials must be at least 1 and --seconds positive.")

@@ -15,12 +15,12 @@ import numpy as np
 import torch
 
 from stage1_pose import audio
-from stage1_pose.checkpoint import load_checkpoint
-from stage1_pose.device import resolve_device
-from stage1_pose.errors import DancesynthError
-from stage1_pose.methods import build_method, config_from_dict, load_method
+from dancesynth.core.checkpoint import load_checkpoint
+from dancesynth.core.device import resolve_device
+from dancesynth.core.errors import DancesynthError
+from stage1_pose.registry import build_method, config_from_dict, load_method
 from stage1_pose.models.base import Stage1Method
-from stage1_pose.skeleton import NormParams, PoseSequence, denormalize
+from dancesynth.core.skeleton import NormParams, PoseSequence, denormalize
 
 KIND = "stage1"
 PRECISIONS = ("auto", "fp32", "int8")

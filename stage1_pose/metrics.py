@@ -3,7 +3,7 @@
 Feature-space metrics (FID, diversity, multimodality, cross-modal distance) take embeddings from the project's
 style classifier (:mod:`stage1_pose.style_classifier`, a 200-d LSTM feature as in Dance Revolution). Beat
 metrics take beat positions: music beats in seconds, kinematic beats as pose-frame indices (from
-:mod:`stage1_pose.kinematic_beats`), so every metric here is independent of how beats were found.
+:mod:`dancesynth.core.motion`), so every metric here is independent of how beats were found.
 """
 
 from __future__ import annotations

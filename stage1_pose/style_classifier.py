@@ -5,7 +5,7 @@ dataset's styles; the time-averaged LSTM output is the 200-d feature. It reads f
 (``window_frames``, 4 s at 15 fps by default); a whole dance is cut into consecutive windows, so a dance
 gets one feature per window (for the long-term FID curve) and their mean as its feature.
 
-Input per frame: :func:`stage1_pose.skeleton.normalize` model coordinates (root position relative to the
+Input per frame: :func:`dancesynth.core.skeleton.normalize` model coordinates (root position relative to the
 canvas centre and joints relative to the root, in torso lengths) and their frame-to-frame velocity, 100 values.
 """
 
@@ -22,9 +22,9 @@ import torch
 from torch import nn
 from tqdm import tqdm
 
-from stage1_pose.checkpoint import load_checkpoint, save_checkpoint
-from stage1_pose.errors import DancesynthError
-from stage1_pose.skeleton import NUM_JOINTS, PoseSequence, normalize
+from dancesynth.core.checkpoint import load_checkpoint, save_checkpoint
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.skeleton import NUM_JOINTS, PoseSequence, normalize
 
 KIND = "style_classifier"
 INPUT_DIM = NUM_JOINTS * 2 * 2

@@ -1,7 +1,7 @@
 """The one training loop of every stage-1 method: data order, checkpoints, exact resume, DDP, logs, previews.
 
 A run folder ``RUN_DIR`` holds ``latest.safetensors`` / ``latest.json`` / ``latest.training.pt``
-(:mod:`stage1_pose.checkpoint`, kind ``"stage1"``), ``metrics.csv`` (one row per epoch: mean of every
+(:mod:`dancesynth.core.checkpoint`, kind ``"stage1"``), ``metrics.csv`` (one row per epoch: mean of every
 scalar the method logs), ``loss.png`` and ``previews/epoch_XXXX.mp4`` (a skeleton video of a validation song).
 
 Exact resume: the data order of epoch ``e`` is a permutation drawn from ``seed`` and ``e`` alone, and a
@@ -34,14 +34,14 @@ import torch  # noqa: E402
 import torch.distributed as dist  # noqa: E402
 from tqdm import tqdm  # noqa: E402
 
-from stage1_pose import checkpoint as ckpt  # noqa: E402
+from dancesynth.core import checkpoint as ckpt  # noqa: E402
 from stage1_pose.data.dataset import DanceDataset, WindowDataset, collate  # noqa: E402
-from stage1_pose.device import resolve_device  # noqa: E402
-from stage1_pose.errors import DancesynthError  # noqa: E402
-from stage1_pose.fileio import atomic_path  # noqa: E402
-from stage1_pose.methods import build_method, config_from_dict, load_method, make_config  # noqa: E402
+from dancesynth.core.device import resolve_device  # noqa: E402
+from dancesynth.core.errors import DancesynthError  # noqa: E402
+from dancesynth.core.fileio import atomic_path  # noqa: E402
+from stage1_pose.registry import build_method, config_from_dict, load_method, make_config  # noqa: E402
 from stage1_pose.models.base import Stage1Method  # noqa: E402
-from stage1_pose.skeleton import body_scale  # noqa: E402
+from dancesynth.core.skeleton import body_scale  # noqa: E402
 
 KIND = "stage1"
 
@@ -212,7 +212,7 @@ class Trainer:
             plot_metrics(path, self.run_dir / "loss.png")
 
     def preview(self) -> None:
-        from stage1_pose.draw import write_skeleton_video
+        from dancesynth.core.draw import write_skeleton_video
         from stage1_pose.generate import LoadedPoseModel, generate_from_features
 
         clips = self.dataset.clips("val") or self.dataset.clips("train")

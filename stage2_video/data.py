@@ -1,6 +1,6 @@
 """Training data for the appearance model from ONE video of the target person.
 
-The frames are framed (crop + resize + pad, see :mod:`stage2_video.render`) once and cached in the run folder
+The frames are framed (crop + resize + pad, see :mod:`stage2_video.framing`) once and cached in the run folder
 as a uint8 ``.npy`` memory map, so memory stays flat for long videos and resuming skips the decoding. Poses
 are cached as ``poses.npz``. The split is by time: the last ``val_fraction`` of the video is held out.
 """
@@ -15,11 +15,11 @@ import torch
 from torch.utils.data import Dataset
 from tqdm import tqdm
 
-from stage1_pose.errors import DancesynthError
-from stage1_pose.fileio import atomic_path
-from stage1_pose.media import probe_video, read_frames
-from stage1_pose.skeleton import PoseSequence
-from stage2_video.render import Framing, label_map
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import atomic_path
+from dancesynth.core.media import probe_video, read_frames
+from dancesynth.core.skeleton import PoseSequence
+from stage2_video.framing import Framing, label_map
 
 POSES_FILE = "poses.npz"
 

@@ -1,6 +1,6 @@
 """Video -> BODY_25 PoseSequence with the BlazePose model bundled in mediapipe (CPU, offline).
 
-Pipeline per video: decode upright frames (:mod:`stage1_pose.media` applies the container's rotation),
+Pipeline per video: decode upright frames (:mod:`dancesynth.core.media` applies the container's rotation),
 follow one person with :class:`stage2_video.tracking.PersonTracker`, map BlazePose's 33 landmarks to
 BODY_25, fill lost joints by interpolation in time, smooth (:mod:`stage2_video.smoothing`).
 
@@ -21,10 +21,10 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from stage1_pose.draw import draw_pose
-from stage1_pose.errors import DancesynthError
-from stage1_pose.media import VideoWriter, probe_video, read_frames
-from stage1_pose.skeleton import JOINT_INDEX, NECK, NUM_JOINTS, ROOT, PoseSequence, interpolate_missing
+from dancesynth.core.draw import draw_pose
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.media import VideoWriter, probe_video, read_frames
+from dancesynth.core.skeleton import JOINT_INDEX, NECK, NUM_JOINTS, ROOT, PoseSequence, interpolate_missing
 from stage2_video.smoothing import SmoothingConfig, smooth
 from stage2_video.tracking import Box, PersonTracker, TrackerConfig, TrackStats
 

@@ -15,8 +15,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from stage1_pose.errors import DancesynthError
-from stage1_pose.skeleton import JOINT_INDEX, ROOT, PoseSequence
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.skeleton import JOINT_INDEX, ROOT, PoseSequence
 
 ANKLES = (JOINT_INDEX["RAnkle"], JOINT_INDEX["LAnkle"])
 HEAD = tuple(JOINT_INDEX[n] for n in ("Nose", "REye", "LEye", "REar", "LEar", "Neck"))

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
-from stage1_pose.skeleton import NECK, ROOT, PoseSequence
+from dancesynth.core.skeleton import NECK, ROOT, PoseSequence
 
 MIN_CONFIDENCE = 0.05
 

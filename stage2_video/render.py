@@ -1,131 +1,167 @@
-"""Pose sequences -> skeleton label maps at the model resolution, framed exactly like the video frames.
+"""Rendering a trained appearance model: pose sequence -> frames of the target person, streamed.
 
-A :class:`Framing` fixes, for one target video, which region of its canvas the model sees (a crop box in
-canvas pixels around where the person moves) and how that region is resized to the model's width x height:
-one uniform scale (aspect kept) and black padding, never stretching. Frames and poses go through the same
-framing, so a label map lines up with its frame pixel for pixel.
+Poses from elsewhere are first normalised onto the target's canvas (:mod:`stage2_video.normalize`, with the
+target statistics stored in the model's JSON), then framed like the training frames, drawn as label maps
+and fed through the generator one frame at a time (each frame conditions the next), so memory stays flat
+for any length.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
-from dataclasses import asdict, dataclass
+import copy
+import os
+import warnings
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
 
-import cv2
 import numpy as np
+import torch
+from torch import nn
+from tqdm import tqdm
 
-from stage1_pose.draw import draw_pose
-from stage1_pose.skeleton import PoseSequence
-
-MIN_CONFIDENCE = 0.05
-# Extra room around the joints' bounding box, as a share of its height (head above the nose, feet, motion blur).
-CROP_MARGIN = 0.15
-# Percentiles of joint positions that bound the crop: robust to a few bad detections.
-CROP_PERCENTILES = (0.5, 99.5)
-
-
-@dataclass(frozen=True)
-class Framing:
-    """Canvas region ``[x0, x0 + crop_width) x [y0, y0 + crop_height)`` (pixels, may extend past the canvas,
-    which reads as black) resized by one factor to ``inner_width x inner_height`` and centred, with black
-    padding, in an ``out_width x out_height`` model image."""
-
-    x0: int
-    y0: int
-    crop_width: int
-    crop_height: int
-    out_width: int
-    out_height: int
-
-    @property
-    def inner_width(self) -> int:
-        return max(1, round(self.crop_width * self._scale))
-
-    @property
-    def inner_height(self) -> int:
-        return max(1, round(self.crop_height * self._scale))
-
-    @property
-    def _scale(self) -> float:
-        return min(self.out_width / self.crop_width, self.out_height / self.crop_height)
-
-    @property
-    def pad_x(self) -> int:
-        return (self.out_width - self.inner_width) // 2
-
-    @property
-    def pad_y(self) -> int:
-        return (self.out_height - self.inner_height) // 2
-
-    def points(self, xy: np.ndarray) -> np.ndarray:
-        """``[..., 2]`` canvas pixels -> model-image pixels (pixel-centre convention of ``cv2.resize``)."""
-        sx = self.inner_width / self.crop_width
-        sy = self.inner_height / self.crop_height
-        out = np.asarray(xy, np.float32).copy()
-        out[..., 0] = (out[..., 0] - self.x0 + 0.5) * sx - 0.5 + self.pad_x
-        out[..., 1] = (out[..., 1] - self.y0 + 0.5) * sy - 0.5 + self.pad_y
-        return out
-
-    def image(self, frame: np.ndarray) -> np.ndarray:
-        """``[H, W, 3]`` uint8 frame of the canvas -> ``[out_height, out_width, 3]`` uint8 model image."""
-        h, w = frame.shape[:2]
-        crop = np.zeros((self.crop_height, self.crop_width, 3), np.uint8)
-        sx0, sy0 = max(self.x0, 0), max(self.y0, 0)
-        sx1, sy1 = min(self.x0 + self.crop_width, w), min(self.y0 + self.crop_height, h)
-        if sx1 > sx0 and sy1 > sy0:
-            crop[sy0 - self.y0:sy1 - self.y0, sx0 - self.x0:sx1 - self.x0] = frame[sy0:sy1, sx0:sx1]
-        inner = cv2.resize(crop, (self.inner_width, self.inner_height), interpolation=cv2.INTER_AREA)
-        out = np.zeros((self.out_height, self.out_width, 3), np.uint8)
-        out[self.pad_y:self.pad_y + self.inner_height, self.pad_x:self.pad_x + self.inner_width] = inner
-        return out
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "Framing":
-        return cls(**d)
+from dancesynth.core.checkpoint import load_checkpoint
+from dancesynth.core.device import resolve_device
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.media import VideoWriter
+from dancesynth.core.skeleton import PoseSequence
+from stage2_video.data import to_image, to_tensor
+from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig
+from stage2_video.normalize import BodyStats, fit_normalization
+from stage2_video.framing import Framing, label_map
+from stage2_video.train import KIND
+from stage2_video.winograd import winograd_generator
 
 
-def whole_canvas(width: int, height: int, out_width: int, out_height: int) -> Framing:
-    """Letterbox the full ``width x height`` canvas into the model image."""
-    return Framing(0, 0, int(width), int(height), int(out_width), int(out_height))
+class _ChannelsLast(nn.Module):
+    """Runs ``inner`` on a channels-last copy of its input (oneDNN's preferred layout for convolutions)."""
+
+    def __init__(self, inner: nn.Module) -> None:
+        super().__init__()
+        self.inner = inner
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.inner(x.contiguous(memory_format=torch.channels_last))
 
 
-def person_framing(seq: PoseSequence, out_width: int, out_height: int) -> Framing:
-    """The crop around where the person moves in ``seq`` (all frames), grown to the model's aspect ratio.
+class OpenVINOGenerator:
+    """The generator compiled by OpenVINO's CPU plugin for one input size, float32 throughout.
 
-    Falls back to the whole canvas when no joint is visible or the person covers most of it anyway.
+    Its residual blocks are first rewritten with Winograd convolutions (:mod:`stage2_video.winograd`, a quarter
+    of the multiplies); OpenVINO then fuses the other convolutions with their instance norm and activation and
+    keeps activations in blocked layouts between layers, which PyTorch's eager and TorchScript paths do not.
+    The output equals the plain forward up to float rounding (``benchmarks/bench_render.py`` measures both).
     """
-    visible = seq.confidence >= MIN_CONFIDENCE
-    if not visible.any():
-        return whole_canvas(seq.width, seq.height, out_width, out_height)
-    pts = seq.xy[visible]
-    (x_lo, y_lo), (x_hi, y_hi) = np.percentile(pts, CROP_PERCENTILES, axis=0)
-    margin = CROP_MARGIN * max(y_hi - y_lo, x_hi - x_lo, 1.0)
-    x_lo, x_hi, y_lo, y_hi = x_lo - margin, x_hi + margin, y_lo - margin, y_hi + margin
-    aspect = out_width / out_height
-    w, h = x_hi - x_lo, y_hi - y_lo
-    w, h = max(w, h * aspect), max(h, w / aspect)
-    if w >= seq.width and h >= seq.height:
-        return whole_canvas(seq.width, seq.height, out_width, out_height)
-    cx, cy = (x_lo + x_hi) / 2, (y_lo + y_hi) / 2
-    # Slide the box inside the canvas where it fits, so less of the crop is padding.
-    x0 = min(max(cx - w / 2, 0.0), max(seq.width - w, 0.0)) if w <= seq.width else cx - w / 2
-    y0 = min(max(cy - h / 2, 0.0), max(seq.height - h, 0.0)) if h <= seq.height else cy - h / 2
-    return Framing(int(np.floor(x0)), int(np.floor(y0)), int(np.ceil(w)), int(np.ceil(h)), out_width, out_height)
+
+    def __init__(self, generator: nn.Module, in_channels: int, width: int, height: int) -> None:
+        import openvino
+
+        shape = (1, in_channels, height, width)
+        example = torch.zeros(shape)
+        with torch.no_grad(), warnings.catch_warnings():
+            # The tracer warns about instance norm's shape checks, fixed for a fixed input size.
+            warnings.simplefilter("ignore")
+            # Traced here without autograd or the tracer's re-run check: left to the converter, tracing held
+            # about 400 MB more at its peak for the small preset.
+            traced = torch.jit.trace(winograd_generator(generator, in_channels, width, height), example,
+                                     check_trace=False)
+            model = openvino.convert_model(traced, example_input=example, input=[shape])
+        compiled = openvino.Core().compile_model(model, "CPU", {
+            "INFERENCE_PRECISION_HINT": "f32", "PERFORMANCE_HINT": "LATENCY",
+            "INFERENCE_NUM_THREADS": torch.get_num_threads()})
+        self._request = compiled.create_infer_request()
+
+    def __call__(self, x: torch.Tensor) -> torch.Tensor:
+        """``[1, C, H, W]`` float32 CPU tensor -> ``[1, 3, H, W]`` frame in [-1, 1]."""
+        # The result buffer belongs to the request and is overwritten by the next call.
+        return torch.from_numpy(self._request.infer([x.numpy()])[0].copy())
 
 
-def label_map(keypoints: np.ndarray, framing: Framing) -> np.ndarray:
-    """One ``[25, 3]`` pose (canvas pixels + confidence) -> ``[out_height, out_width, 3]`` uint8 RGB label map:
-    OpenPose-coloured limbs and joints on black."""
-    kp = np.asarray(keypoints, np.float32).copy()
-    kp[:, :2] = framing.points(kp[:, :2])
-    canvas = np.zeros((framing.out_height, framing.out_width, 3), np.uint8)
-    return draw_pose(canvas, kp)
+def optimize_generator(generator: nn.Module, in_channels: int, width: int, height: int,
+                       device: torch.device) -> Callable[[torch.Tensor], torch.Tensor]:
+    """An inference-only copy of ``generator`` for ``[1, in_channels, height, width]`` inputs.
+
+    On CPU the network compiled by OpenVINO (:class:`OpenVINOGenerator`); on a GPU a channels-last copy traced
+    and frozen by TorchScript. Float32 throughout, so the output equals the plain forward up to rounding
+    (``benchmarks/bench_render.py`` measures the difference and the speed-up).
+    """
+    if device.type == "cpu":
+        return OpenVINOGenerator(generator, in_channels, width, height)
+    wrapped = _ChannelsLast(copy.deepcopy(generator).eval().to(device, memory_format=torch.channels_last))
+    example = torch.zeros(1, in_channels, height, width, device=device)
+    with torch.no_grad(), warnings.catch_warnings():
+        # The tracer flags instance norm's shape checks (fixed for a fixed input size) and TorchScript is
+        # deprecated in favour of torch.compile.
+        warnings.simplefilter("ignore")
+        return torch.jit.optimize_for_inference(torch.jit.trace(wrapped, example))
 
 
-def label_maps(seq: PoseSequence, framing: Framing) -> Iterator[np.ndarray]:
-    """Stream :func:`label_map` over every frame of ``seq``."""
+@dataclass
+class AppearanceModel:
+    """A trained generator with what rendering needs from its run folder."""
+
+    generator: Callable[[torch.Tensor], torch.Tensor]
+    config: Pix2PixHDConfig
+    framing: Framing
+    target_stats: BodyStats | None
+    fps: float
+    device: torch.device
+
+    @torch.inference_mode()
+    def step(self, label: np.ndarray, previous: torch.Tensor | None) -> torch.Tensor:
+        """``[H, W, 3]`` uint8 label map (+ previous output) -> ``[1, 3, H, W]`` frame in [-1, 1]."""
+        x = to_tensor(label)[None].to(self.device)
+        if self.config.temporal:
+            x = torch.cat([x, torch.zeros_like(x) if previous is None else previous], dim=1)
+        return self.generator(x)
+
+
+def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", optimize: bool = True) -> AppearanceModel:
+    """Load ``RUN_DIR/latest`` (kind "stage2"); ``optimize`` compiles the generator for fast rendering."""
+    state_dict, meta = load_checkpoint(Path(run_dir), KIND)
+    dev = resolve_device(device)
+    config = Pix2PixHDConfig.from_dict(meta["config"])
+    model = Pix2PixHD(config)
+    model.load_state_dict(state_dict)
+    generator = model.generator.eval().to(dev)
+    if optimize:
+        in_channels = 6 if config.temporal else 3
+        generator = optimize_generator(generator, in_channels, config.width, config.height, dev)
+    stats = BodyStats.from_dict(meta["target_stats"]) if meta.get("target_stats") else None
+    return AppearanceModel(generator, config, Framing.from_dict(meta["framing"]), stats, float(meta["fps"]), dev)
+
+
+def target_poses(model: AppearanceModel, poses: PoseSequence, normalize: bool = True) -> PoseSequence:
+    """``poses`` moved onto the target's canvas (EDN normalisation) unless ``normalize`` is False."""
+    if not normalize:
+        return poses
+    if model.target_stats is None:
+        raise DancesynthError("This model has no target body statistics (the target video never showed head and "
+                              "ankles together); render with --no-normalize.")
+    return fit_normalization(poses, model.target_stats).apply(poses)
+
+
+def render_frames(model: AppearanceModel, poses: PoseSequence, normalize: bool = True) -> Iterator[np.ndarray]:
+    """Yield one ``[height, width, 3]`` uint8 RGB frame (model resolution) per pose, in order."""
+    seq = target_poses(model, poses, normalize)
+    previous = None
     for keypoints in seq.keypoints:
-        yield label_map(keypoints, framing)
+        previous = model.step(label_map(keypoints, model.framing), previous)
+        yield to_image(previous[0])
+
+
+def render_video(poses: PoseSequence, model: AppearanceModel | str | os.PathLike, out_path: str | os.PathLike,
+                 audio: np.ndarray | None = None, audio_sr: int | None = None, normalize: bool = True,
+                 device: str = "auto", progress: bool = True) -> Path:
+    """Render ``poses`` (at their fps) to an mp4 at ``out_path``, with ``audio`` (mono float32 at ``audio_sr``
+    Hz) muxed when given; ``model`` is a loaded model or a run folder. Written atomically; returns the path."""
+    if not isinstance(model, AppearanceModel):
+        model = load_appearance_model(model, device)
+    out_path = Path(out_path)
+    frames = tqdm(render_frames(model, poses, normalize), total=len(poses), desc="rendering", unit="frame",
+                  disable=not progress)
+    with VideoWriter(out_path, poses.fps, model.config.width, model.config.height, audio=audio,
+                     audio_sr=audio_sr) as writer:
+        for frame in frames:
+            writer.write(frame)
+    return out_path

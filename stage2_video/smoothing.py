@@ -1,7 +1,7 @@
 """Temporal smoothing of extracted poses: Savitzky-Golay (zero lag, offline) or One-Euro (causal).
 
 Both act on x, y of each joint over time and leave confidence unchanged. Absent joints (confidence 0) are
-neither used nor changed, so run :func:`stage1_pose.skeleton.interpolate_missing` first to smooth across gaps.
+neither used nor changed, so run :func:`dancesynth.core.skeleton.interpolate_missing` first to smooth across gaps.
 """
 
 from __future__ import annotations
@@ -11,8 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import savgol_filter
 
-from stage1_pose.errors import DancesynthError
-from stage1_pose.skeleton import PoseSequence
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.skeleton import PoseSequence
 
 METHODS = ("savgol", "one-euro", "none")
 

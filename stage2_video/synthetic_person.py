@@ -15,10 +15,10 @@ from dataclasses import asdict, dataclass, fields
 import cv2
 import numpy as np
 
-from stage1_pose.draw import fit_to_canvas
-from stage1_pose.errors import DancesynthError
-from stage1_pose.media import VideoWriter
-from stage1_pose.skeleton import JOINT_INDEX, PoseSequence, body_scale
+from dancesynth.core.draw import fit_to_canvas
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.media import VideoWriter
+from dancesynth.core.skeleton import JOINT_INDEX, PoseSequence, body_scale
 
 RGB = tuple[int, int, int]
 MIN_CONFIDENCE = 0.05
@@ -298,7 +298,7 @@ def render_person(seq: PoseSequence, appearance: PersonAppearance, size: tuple[i
         size: ``(width, height)`` of the frames in pixels; default the pose canvas. Another size scales the
             canvas into it keeping the aspect ratio (the room fills the whole frame).
         scale: body scale in canvas pixels (limb widths are relative to it); default
-            :func:`stage1_pose.skeleton.body_scale` of the sequence.
+            :func:`dancesynth.core.skeleton.body_scale` of the sequence.
     """
     width, height = size if size is not None else (seq.width, seq.height)
     s, dx, dy = fit_to_canvas(seq.width, seq.height, width, height)

@@ -30,7 +30,7 @@ from typing import Protocol
 
 import numpy as np
 
-from stage1_pose.skeleton import JOINT_INDEX, NECK, ROOT
+from dancesynth.core.skeleton import JOINT_INDEX, NECK, ROOT
 
 _LSHOULDER, _RSHOULDER = JOINT_INDEX["LShoulder"], JOINT_INDEX["RShoulder"]
 

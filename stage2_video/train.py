@@ -29,17 +29,17 @@ import torch.nn.functional as F
 from torch.utils.data import DistributedSampler
 from tqdm import tqdm
 
-from stage1_pose.checkpoint import (
+from dancesynth.core.checkpoint import (
     capture_rng_state, load_checkpoint, load_meta, load_training_state, restore_rng_state, save_checkpoint)
-from stage1_pose.device import resolve_device
-from stage1_pose.errors import DancesynthError
-from stage1_pose.fileio import atomic_path
+from dancesynth.core.device import resolve_device
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import atomic_path
 from stage2_video.data import (
     FramePairs, TargetVideo, cache_frames, check_poses_match, load_or_extract_poses, split_ranges, to_image)
 from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig, feature_matching_loss, lsgan_loss, preset
 from stage2_video.normalize import body_stats
 from stage2_video.quality import psnr, ssim
-from stage2_video.render import Framing, person_framing
+from stage2_video.framing import Framing, person_framing
 from stage2_video.vgg import VGGLoss, build_vgg_loss
 
 KIND = "stage2"

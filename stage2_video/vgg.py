@@ -13,7 +13,7 @@ import torch.nn.functional as F
 from torch import nn
 from torchvision.models.vgg import cfgs, make_layers
 
-from stage1_pose.errors import DancesynthError
+from dancesynth.core.errors import DancesynthError
 
 # torchvision vgg19.features indices ending at relu1_1, relu2_1, relu3_1, relu4_1, relu5_1, and pix2pixHD's weights.
 SLICE_ENDS = (2, 7, 12, 21, 30)

@@ -13,7 +13,7 @@ Inside a run of residual blocks the activations are kept as ``[H * W, C]`` rows 
 cutting the padded image into overlapping tiles and putting the output tiles back in place are both row
 gathers with precomputed indices (the reflection padding folded into them), and the only transposes are one
 at the start and one at the end of the run. The rewritten network is meant to be traced and compiled by
-OpenVINO (:class:`stage2_video.infer.OpenVINOGenerator`) for one input size.
+OpenVINO (:class:`stage2_video.render.OpenVINOGenerator`) for one input size.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ import soundfile
 
 from stage1_pose.audio import feature_dim
 from stage1_pose.data.dataset import Clip, clip_paths, create_layout, write_beats, write_manifest
-from stage1_pose.skeleton import PoseSequence
+from dancesynth.core.skeleton import PoseSequence
 
 FPS, SR, SECONDS = 15.0, 8000, 8.0
 

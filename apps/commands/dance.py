@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from apps.compose import dance
+from apps.pipeline import dance
 
 NAME = "dance"
 HELP = "make a video of the target person dancing to a song"

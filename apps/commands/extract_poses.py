@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from stage1_pose.errors import DancesynthError
+from dancesynth.core.errors import DancesynthError
 from stage2_video.extract import ExtractConfig, extract_poses, write_preview
 from stage2_video.smoothing import METHODS, SmoothingConfig
 
@@ -19,7 +19,7 @@ visible, the largest one near the centre of the first frame where anybody is fou
 pose estimator to somebody else are detected and undone. Frames where the person is lost get their joints
 interpolated in time, then a light temporal filter removes jitter.
 
-Output (.npz, read with stage1_pose.skeleton.PoseSequence.load): keypoints [frames, 25, 3] float32 =
+Output (.npz, read with dancesynth.core.skeleton.PoseSequence.load): keypoints [frames, 25, 3] float32 =
 x, y in pixels of the upright video frame and confidence (BlazePose visibility; 0 = joint absent; small toes
 are always absent), fps, width, height, layout="BODY_25".
 

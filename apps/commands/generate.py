@@ -32,9 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> None:
-    from stage1_pose.draw import write_skeleton_video
+    from dancesynth.core.draw import write_skeleton_video
     from stage1_pose.generate import generate_dance, load_pose_model
-    from stage1_pose.media import load_song
+    from dancesynth.core.media import load_song
 
     model = load_pose_model(args.model, args.device, args.precision)
     samples = load_song(args.song, SONG_SR)

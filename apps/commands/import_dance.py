@@ -46,7 +46,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> None:
     from stage1_pose.data import importers
-    from stage1_pose.errors import DancesynthError
+    from dancesynth.core.errors import DancesynthError
 
     if args.openpose:
         missing = [f"--{k}" for k in ("style", "fps", "width", "height") if getattr(args, k) is None]

@@ -38,7 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> None:
     from apps.prepare import prepare_videos
-    from stage1_pose.errors import DancesynthError
+    from dancesynth.core.errors import DancesynthError
 
     report = prepare_videos(args.videos_dir, args.out, args.clip_seconds, args.default_style)
     for video, reason in report.skipped.items():

@@ -36,9 +36,9 @@ def run(args: argparse.Namespace) -> None:
 
     if args.threads:
         torch.set_num_threads(args.threads)
-    from stage1_pose.media import decode_audio
-    from stage1_pose.skeleton import PoseSequence
-    from stage2_video.infer import load_appearance_model, render_video
+    from dancesynth.core.media import decode_audio
+    from dancesynth.core.skeleton import PoseSequence
+    from stage2_video.render import load_appearance_model, render_video
 
     poses = PoseSequence.load(args.poses)
     model = load_appearance_model(args.model, args.device, optimize=not args.no_optimize)

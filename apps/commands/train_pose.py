@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from stage1_pose.methods import method_names
+from stage1_pose.registry import method_names
 
 NAME = "train-pose"
 HELP = "train a music-to-pose model (dance_revolution, lstm, ren, ...) on a dataset folder"
@@ -51,7 +51,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _overrides(items: list[str]) -> dict[str, str]:
-    from stage1_pose.errors import DancesynthError
+    from dancesynth.core.errors import DancesynthError
 
     out = {}
     for item in items:

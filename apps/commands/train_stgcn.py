@@ -5,8 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from stage1_pose.models.stgcn import STGCN_PRESETS
-from stage1_pose.perceptual import train_stgcn
+from stage1_pose.models.ren.stgcn import STGCN_PRESETS
+from stage1_pose.models.ren.perceptual import train_stgcn
 
 NAME = "train-stgcn"
 HELP = "train the ST-GCN style classifier used by the ren method's pose perceptual loss"

@@ -31,8 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> None:
     import dataclasses
 
-    from stage1_pose.device import resolve_device
-    from stage1_pose.errors import DancesynthError
+    from dancesynth.core.device import resolve_device
+    from dancesynth.core.errors import DancesynthError
     from stage1_pose.style_classifier import PRESETS, save_style_classifier, train_on_dataset
 
     config = PRESETS[args.preset]

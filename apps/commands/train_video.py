@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from stage1_pose.errors import DancesynthError
+from dancesynth.core.errors import DancesynthError
 from stage2_video.models.pix2pixhd import PRESETS
 
 NAME = "train-video"

@@ -30,10 +30,10 @@ from stage1_pose import audio as audio_features
 # The layout helpers are part of this module's interface too (generators and importers use layout directly).
 from stage1_pose.data.layout import (MANIFEST, SPLITS, Clip, Manifest, clip_paths, create_layout, read_manifest,
                                      split_songs, write_beats, write_manifest)
-from stage1_pose.errors import DancesynthError
-from stage1_pose.fileio import atomic_path
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import atomic_path
 from stage1_pose.models.base import Batch
-from stage1_pose.skeleton import PoseSequence, interpolate_missing, normalize
+from dancesynth.core.skeleton import PoseSequence, interpolate_missing, normalize
 
 __all__ = ["MANIFEST", "SPLITS", "Clip", "DanceDataset", "FeatureStats", "Manifest", "WindowDataset", "clip_paths",
            "collate", "create_layout", "load_feature_stats", "read_manifest", "split_songs", "write_beats",
@@ -84,7 +84,7 @@ class DanceDataset:
 
     def load_audio(self, clip: Clip, sr: int | None = None) -> np.ndarray:
         """The clip's song as mono float32 ``[N]`` samples at ``sr`` Hz (default: the stored rate)."""
-        from stage1_pose.media import decode_audio
+        from dancesynth.core.media import decode_audio
 
         return decode_audio(self._file(clip, clip.audio), sr or self.sample_rate)
 
@@ -176,7 +176,7 @@ class WindowDataset(torch.utils.data.Dataset):
     """Fixed-length (music, dance) training pairs cut from the clips of one split.
 
     Item ``i`` is a dict: ``audio`` ``[window_frames, D]`` float32 standardised features of ``feature_kind``,
-    ``poses`` ``[window_frames, 25, 2]`` float32 model coordinates (:func:`stage1_pose.skeleton.normalize`
+    ``poses`` ``[window_frames, 25, 2]`` float32 model coordinates (:func:`dancesynth.core.skeleton.normalize`
     per clip), ``style`` int64 scalar, plus ``clip`` (id) and ``start`` (first pose frame). Windows start
     every ``stride_frames`` frames; clips shorter than a window give none. Features are computed and cached on
     first use; standardisation uses the train split's statistics (:attr:`stats`) whatever ``split`` is.

@@ -30,9 +30,9 @@ from stage1_pose.data.layout import (MANIFEST, SPLITS, Clip, clip_paths, create_
                                      split_for_new_song, write_beats, write_manifest)
 from stage1_pose.data.synth_dance import FPS
 from stage1_pose.data.synth_music import BEATS_PER_BAR, SAMPLE_RATE
-from stage1_pose.errors import DancesynthError
-from stage1_pose.fileio import atomic_path
-from stage1_pose.skeleton import COCO17_TO_BODY25, PoseSequence, from_partial, resample
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import atomic_path
+from dancesynth.core.skeleton import COCO17_TO_BODY25, PoseSequence, from_partial, resample
 
 # AIST++ genre codes (the "g.." part of a sequence name) and the dance genres they stand for.
 AIST_GENRES = {"gBR": "break", "gPO": "pop", "gLO": "lock", "gMH": "middle_hiphop", "gLH": "la_hiphop",
@@ -53,7 +53,7 @@ def add_clip(out_dir: str | os.PathLike, poses: PoseSequence, song_path: str | o
         split: ``train``, ``val`` or ``test``; default: the split of this song's other clips, or a stable
             80/10/10 choice by song.
     """
-    from stage1_pose.media import load_song
+    from dancesynth.core.media import load_song
 
     _check_split(split)
     return add_clip_samples(out_dir, poses, load_song(song_path, SAMPLE_RATE), style, clip_id, split)
@@ -122,7 +122,7 @@ def import_openpose(json_folder: str | os.PathLike, audio_path: str | os.PathLik
         fps, width, height: the video's frame rate and size in pixels (OpenPose does not store them).
         clip_id: default: the folder's name. See :func:`add_clip` for the rest.
     """
-    from stage1_pose.openpose_io import load_openpose_folder
+    from dancesynth.core.openpose_io import load_openpose_folder
 
     poses = load_openpose_folder(json_folder, fps, width, height)
     return add_clip(out_dir, poses, audio_path, style, clip_id or Path(json_folder).name, split)

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from stage1_pose.errors import DancesynthError
-from stage1_pose.fileio import atomic_path
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import atomic_path
 
 MANIFEST = "manifest.json"
 MANIFEST_VERSION = 1

@@ -20,8 +20,8 @@ from stage1_pose.data.layout import (MANIFEST, Clip, clip_paths, create_layout, 
 from stage1_pose.data.styles import STYLES
 from stage1_pose.data.synth_dance import FPS, synthesize_dance
 from stage1_pose.data.synth_music import SAMPLE_RATE, synthesize_song
-from stage1_pose.errors import DancesynthError
-from stage1_pose.fileio import atomic_path
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import atomic_path
 
 # Shortest clip: a few beats of the slowest style, and enough frames for the audio features' analysis windows.
 MIN_SECONDS = 2.0

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from stage1_pose.data.styles import Style
-from stage1_pose.skeleton import JOINT_INDEX, NUM_JOINTS, PoseSequence
+from dancesynth.core.skeleton import JOINT_INDEX, NUM_JOINTS, PoseSequence
 
 FPS = 15.0
 WIDTH, HEIGHT = 1280, 720

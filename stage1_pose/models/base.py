@@ -3,7 +3,7 @@
 Tensors crossing it:
   * ``audio``: ``[B, T, D]`` float32 audio features of the method's ``feature_kind``, one row per pose frame
     (for ``waveform``, D = samples per pose frame).
-  * ``poses``: ``[B, T, 25, 2]`` float32 model coordinates from :func:`stage1_pose.skeleton.normalize`.
+  * ``poses``: ``[B, T, 25, 2]`` float32 model coordinates from :func:`dancesynth.core.skeleton.normalize`.
   * ``style``: ``[B]`` int64 style label index.
 """
 

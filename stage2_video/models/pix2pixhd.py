@@ -15,7 +15,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from stage1_pose.errors import DancesynthError
+from dancesynth.core.errors import DancesynthError
 
 LABEL_CHANNELS = 3
 IMAGE_CHANNELS = 3

@@ -10,8 +10,8 @@ import torch
 torch.set_num_threads(1)
 
 from apps.cli import main  # noqa: E402
-from stage1_pose.media import decode_audio, probe_streams, probe_video  # noqa: E402
-from stage1_pose.skeleton import PoseSequence  # noqa: E402
+from dancesynth.core.media import decode_audio, probe_streams, probe_video  # noqa: E402
+from dancesynth.core.skeleton import PoseSequence  # noqa: E402
 from stage1_pose.train import train  # noqa: E402
 from stage2_video.synthetic_person import appearance_preset, write_person_video  # noqa: E402
 from stage2_video.train import TrainOptions, train_video  # noqa: E402

@@ -9,7 +9,7 @@ torch.set_num_threads(1)
 
 from apps.cli import main  # noqa: E402
 from apps.demo import DemoPlan, run_demo  # noqa: E402
-from stage1_pose.media import probe_streams  # noqa: E402
+from dancesynth.core.media import probe_streams  # noqa: E402
 
 # The demo's own steps at toy sizes: 6 songs of 12 s, a 4-s target video, a 3-s dance.
 TOY = DemoPlan(clips=6, clip_seconds=12.0, target_seconds=4.0, target_size=128, dance_seconds=3.0,

@@ -5,8 +5,8 @@ import numpy as np
 import skimage.data
 
 from apps.cli import main
-from stage1_pose.media import probe_video, write_video
-from stage1_pose.skeleton import JOINT_INDEX, PoseSequence
+from dancesynth.core.media import probe_video, write_video
+from dancesynth.core.skeleton import JOINT_INDEX, PoseSequence
 
 NAME = "extract-poses"
 

@@ -25,7 +25,7 @@ def test_import_dance_command(tmp_path, capsys):
     import numpy as np
     import soundfile
 
-    from stage1_pose.skeleton import COCO17_TO_BODY25
+    from dancesynth.core.skeleton import COCO17_TO_BODY25
 
     rng = np.random.default_rng(0)
     soundfile.write(tmp_path / "song.wav", (0.1 * rng.standard_normal(3 * 22050)).astype(np.float32), 22050)

@@ -11,9 +11,9 @@ from apps.cli import main
 from apps.prepare import clip_bounds, find_videos, prepare_videos
 from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.data.layout import read_manifest
-from stage1_pose.errors import DancesynthError
-from stage1_pose.media import write_video
-from stage1_pose.skeleton import JOINT_INDEX, PoseSequence
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.media import write_video
+from dancesynth.core.skeleton import JOINT_INDEX, PoseSequence
 
 SR = 22050
 

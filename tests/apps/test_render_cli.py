@@ -1,9 +1,9 @@
 import numpy as np
 
 from apps.cli import main
-from stage1_pose.draw import draw_pose
-from stage1_pose.media import probe_video, write_video
-from stage1_pose.skeleton import PoseSequence
+from dancesynth.core.draw import draw_pose
+from dancesynth.core.media import probe_video, write_video
+from dancesynth.core.skeleton import PoseSequence
 
 
 def _target(folder):

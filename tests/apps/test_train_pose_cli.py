@@ -7,7 +7,7 @@ torch.set_num_threads(1)
 
 from apps.cli import main  # noqa: E402
 from stage1_pose.audio import num_pose_frames  # noqa: E402
-from stage1_pose.skeleton import PoseSequence  # noqa: E402
+from dancesynth.core.skeleton import PoseSequence  # noqa: E402
 
 
 def test_train_pose_then_generate(tiny_stage1_dataset, tmp_path, capsys):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from stage1_pose import audio
-from stage1_pose.errors import DancesynthError
+from dancesynth.core.errors import DancesynthError
 
 
 def drum_loop(bpm: float, seconds: float, sr: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:

@@ -6,8 +6,8 @@ from torch import nn
 # The machine is shared: one intra-op thread avoids OpenMP contention that makes tiny ops take milliseconds.
 torch.set_num_threads(1)
 
-from stage1_pose.checkpoint import save_checkpoint  # noqa: E402
-from stage1_pose.errors import DancesynthError  # noqa: E402
+from dancesynth.core.checkpoint import save_checkpoint  # noqa: E402
+from dancesynth.core.errors import DancesynthError  # noqa: E402
 from stage1_pose.generate import generate_from_features, load_pose_model  # noqa: E402
 from stage1_pose.train import TrainerConfig, train  # noqa: E402
 
@@ -56,7 +56,7 @@ def test_beat_following_methods_get_the_songs_tracked_beats():
     from dataclasses import replace
 
     from stage1_pose.generate import LoadedPoseModel, generate_dance
-    from stage1_pose.models.dancing2music import DANCING2MUSIC_PRESETS, Dancing2MusicMethod
+    from stage1_pose.models.dancing2music.model import DANCING2MUSIC_PRESETS, Dancing2MusicMethod
 
     sr, seconds = 22050, 8.0
     song = np.zeros(int(seconds * sr), np.float32)

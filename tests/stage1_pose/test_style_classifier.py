@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 import torch
 
-from stage1_pose.errors import DancesynthError
-from stage1_pose.skeleton import PoseSequence
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.skeleton import PoseSequence
 from stage1_pose.style_classifier import (PRESETS, classifier_accuracy, load_style_classifier,
                                           save_style_classifier, train_style_classifier)
 

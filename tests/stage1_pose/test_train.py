@@ -11,7 +11,7 @@ from safetensors.torch import load_file
 # The machine is shared: one intra-op thread avoids OpenMP contention that makes tiny ops take milliseconds.
 torch.set_num_threads(1)
 
-from stage1_pose.errors import DancesynthError  # noqa: E402
+from dancesynth.core.errors import DancesynthError  # noqa: E402
 from stage1_pose.train import TrainerConfig, epoch_order, rank_batches, train  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
@@ -104,9 +104,9 @@ def test_resume_after_kill_9_gives_the_same_weights(tiny_stage1_dataset, tmp_pat
 def _ddp_worker(rank: int, data: str, out: str, port: int) -> None:
     os.environ.update(MASTER_ADDR="127.0.0.1", MASTER_PORT=str(port), RANK=str(rank), WORLD_SIZE="2")
     torch.set_num_threads(1)
-    from stage1_pose.methods import make_config
+    from stage1_pose.registry import make_config
     from stage1_pose.train import Trainer
-    from stage1_pose.device import resolve_device
+    from dancesynth.core.device import resolve_device
 
     trainer = Trainer("lstm", Path(data), Path(out), make_config("lstm", "small", TINY_LSTM),
                       TrainerConfig(epochs=1, preview_every=0), resolve_device("cpu"))

@@ -7,9 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from stage1_pose.draw import draw_pose
-from stage1_pose.media import write_video
-from stage1_pose.skeleton import PoseSequence
+from dancesynth.core.draw import draw_pose
+from dancesynth.core.media import write_video
+from dancesynth.core.skeleton import PoseSequence
 
 TINY = {"width": 32, "height": 32, "ngf": 8, "n_downsample": 2, "n_blocks": 1, "ndf": 8, "batch_size": 4}
 

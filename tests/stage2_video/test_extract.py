@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 import skimage.data
 
-from stage1_pose.errors import DancesynthError
-from stage1_pose.media import write_video
-from stage1_pose.skeleton import JOINT_INDEX
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.media import write_video
+from dancesynth.core.skeleton import JOINT_INDEX
 from stage2_video.extract import BlazePose, ExtractConfig, blazepose_to_body25, extract_frames, extract_poses
 from stage2_video.smoothing import SmoothingConfig
 

@@ -1,8 +1,8 @@
 import numpy as np
 import pytest
 
-from stage1_pose.errors import DancesynthError
-from stage1_pose.skeleton import PoseSequence
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.skeleton import PoseSequence
 from stage2_video.normalize import BodyStats, body_stats, fit_normalization
 
 

@@ -1,61 +1,46 @@
+import json
+
 import numpy as np
+import pytest
+import torch
 
-from stage1_pose.skeleton import BODY25_COLORS, PoseSequence
-from stage2_video.render import Framing, label_map, label_maps, person_framing, whole_canvas
-
-
-def _pose(cx: float, cy: float, s: float) -> np.ndarray:
-    rng = np.random.default_rng(1)
-    kp = np.ones((25, 3), np.float32)
-    kp[:, :2] = (cx, cy) + rng.uniform(-1, 1, (25, 2)) * (s * 0.4, s)
-    return kp
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.media import probe_video
+from dancesynth.core.skeleton import PoseSequence
+from stage2_video.render import OpenVINOGenerator, load_appearance_model, render_frames, render_video
 
 
-def test_letterbox_pads_instead_of_stretching():
-    f = whole_canvas(200, 100, 64, 64)
-    assert (f.inner_width, f.inner_height, f.pad_x, f.pad_y) == (64, 32, 0, 16)
-    out = f.image(np.full((100, 200, 3), 255, np.uint8))
-    assert out.shape == (64, 64, 3)
-    assert (out[:16] == 0).all() and (out[48:] == 0).all() and (out[16:48] == 255).all()
-    # one uniform scale: a 20x20 square on the canvas stays square
-    corners = f.points(np.array([[50.0, 40.0], [70.0, 60.0]]))
-    w, h = corners[1] - corners[0]
-    assert abs(w - h) < 1e-4
+def test_render_streams_a_video_with_right_count_and_size(tiny_run, make_poses, tmp_path):
+    model = load_appearance_model(tiny_run, "cpu")
+    # poses from elsewhere: another canvas, smaller person, other fps -> normalised onto the target
+    src = make_poses(frames=9, width=200, height=120)
+    src = src.replace(src.keypoints * np.array([0.8, 0.8, 1], np.float32), fps=10.0)
+    out = render_video(src, model, tmp_path / "out.mp4", progress=False)
+    info = probe_video(out)
+    assert (info.width, info.height) == (32, 32)
+    assert info.num_frames == 9 and info.fps == pytest.approx(10.0)
+    assert not list(tmp_path.glob("*.part*"))
 
 
-def test_frames_and_points_are_framed_identically():
-    f = Framing(x0=300, y0=-20, crop_width=400, crop_height=300, out_width=96, out_height=64)
-    frame = np.zeros((480, 640, 3), np.uint8)
-    frame[200:210, 500:510] = 255  # a 10x10 dot centred at canvas pixel (504.5, 204.5)
-    out = f.image(frame).max(axis=2).astype(float)
-    ys, xs = np.nonzero(out)
-    centre = np.array([np.average(xs, weights=out[ys, xs]), np.average(ys, weights=out[ys, xs])])
-    np.testing.assert_allclose(centre, f.points(np.array([504.5, 204.5])), atol=0.3)
-    assert (f.image(frame)[: f.pad_y] == 0).all()
-    assert Framing.from_dict(f.to_dict()) == f
+def test_optimized_generator_matches_plain_forward(tiny_run):
+    fast = load_appearance_model(tiny_run, "cpu")
+    plain = load_appearance_model(tiny_run, "cpu", optimize=False)
+    assert isinstance(fast.generator, OpenVINOGenerator) and isinstance(plain.generator, torch.nn.Module)
+    poses = PoseSequence.load(tiny_run / "poses.npz").slice_frames(0, 5)
+    for a, b in zip(render_frames(fast, poses, normalize=False), render_frames(plain, poses, normalize=False)):
+        assert a.shape == (32, 32, 3) and a.dtype == np.uint8
+        assert np.abs(a.astype(int) - b.astype(int)).max() <= 1
 
 
-def test_person_framing_keeps_the_person_and_the_model_aspect():
-    kp = np.stack([_pose(900, 400, 120), _pose(1000, 420, 120)])
-    seq = PoseSequence(kp, 15, 1280, 720)
-    f = person_framing(seq, 128, 128)
-    assert f.crop_width == f.crop_height  # square model image: square crop, no padding needed
-    pts = f.points(seq.xy.reshape(-1, 2))
-    assert (pts >= 0).all() and (pts < 128).all()
-    assert f.crop_width < 720  # zoomed in on the person, not the whole canvas
-
-
-def test_label_map_is_deterministic_openpose_coloured():
-    seq = PoseSequence(np.stack([_pose(64, 64, 40)] * 2), 15, 128, 128)
-    f = whole_canvas(128, 128, 64, 64)
-    a, b = list(label_maps(seq, f))
-    assert a.shape == (64, 64, 3) and a.dtype == np.uint8
-    np.testing.assert_array_equal(a, b)
-    assert (a > 0).any() and (a[0, 0] == 0).all()
-    # pure (unblended) pixels use OpenPose colours
-    colours = {tuple(c) for c in BODY25_COLORS}
-    pixels = {tuple(p) for p in a.reshape(-1, 3) if p.any()}
-    assert pixels & colours
-    absent = seq.keypoints[0].copy()
-    absent[:, 2] = 0
-    assert not label_map(absent, f).any()
+def test_wrong_kind_checkpoint_is_a_user_error(tiny_run, tmp_path):
+    other = tmp_path / "other"
+    other.mkdir()
+    for f in tiny_run.glob("latest.*"):
+        (other / f.name).write_bytes(f.read_bytes())
+    meta = json.loads((other / "latest.json").read_text())
+    meta["kind"] = "stage1"
+    (other / "latest.json").write_text(json.dumps(meta))
+    with pytest.raises(DancesynthError):
+        load_appearance_model(other, "cpu")
+    with pytest.raises(DancesynthError):
+        load_appearance_model(tmp_path / "missing", "cpu")

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from stage1_pose.errors import DancesynthError
-from stage1_pose.skeleton import PoseSequence
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.skeleton import PoseSequence
 from stage2_video.smoothing import SmoothingConfig, smooth
 
 FPS = 30.0

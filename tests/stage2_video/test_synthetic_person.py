@@ -5,9 +5,9 @@ import time
 import numpy as np
 import pytest
 
-from stage1_pose import media
-from stage1_pose.errors import DancesynthError
-from stage1_pose.skeleton import JOINT_INDEX, NUM_JOINTS, PoseSequence
+from dancesynth.core import media
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.skeleton import JOINT_INDEX, NUM_JOINTS, PoseSequence
 from stage2_video import synthetic_person as sp
 
 

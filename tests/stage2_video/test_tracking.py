@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from stage1_pose.skeleton import JOINT_INDEX
+from dancesynth.core.skeleton import JOINT_INDEX
 from stage2_video.tracking import Box, PersonTracker, choose_target, find_people, pose_box, torso
 
 J = JOINT_INDEX

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from safetensors.numpy import load_file
 
-from stage1_pose.errors import DancesynthError
+from dancesynth.core.errors import DancesynthError
 from stage2_video.train import TrainOptions, train_video
 
 

@@ -12,9 +12,9 @@ import torch
 from stage1_pose.audio import FEATURE_KINDS, feature_dim
 from stage1_pose.data.dataset import DanceDataset, WindowDataset, collate
 from stage1_pose.data.layout import Clip, clip_paths, create_layout, split_songs, write_beats, write_manifest
-from stage1_pose.errors import DancesynthError
+from dancesynth.core.errors import DancesynthError
 from stage1_pose.models.base import Batch
-from stage1_pose.skeleton import PoseSequence
+from dancesynth.core.skeleton import PoseSequence
 
 SR = 22050
 

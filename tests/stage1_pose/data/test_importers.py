@@ -8,9 +8,9 @@ import soundfile
 
 from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.data.importers import import_aistpp, import_openpose, load_aistpp_keypoints
-from stage1_pose.errors import DancesynthError
-from stage1_pose.openpose_io import save_openpose_folder
-from stage1_pose.skeleton import COCO17_TO_BODY25, PoseSequence
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.openpose_io import save_openpose_folder
+from dancesynth.core.skeleton import COCO17_TO_BODY25, PoseSequence
 
 SR = 22050
 

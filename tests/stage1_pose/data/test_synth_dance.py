@@ -7,7 +7,7 @@ import pytest
 
 from stage1_pose.data.styles import STYLES
 from stage1_pose.data.synth_dance import FPS, HEIGHT, WIDTH, choreograph, synthesize_dance
-from stage1_pose.skeleton import BODY25_LIMBS, JOINT_INDEX
+from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX
 
 
 def _dance(style: str, seed: int, bpm: float = 100.0, seconds: float = 20.0):

@@ -4,7 +4,7 @@ import torch
 torch.set_num_threads(1)
 
 from stage1_pose.models.base import Batch  # noqa: E402
-from stage1_pose.models.lstm import LSTMBaseline, LSTMConfig  # noqa: E402
+from stage1_pose.models.lstm.model import LSTMBaseline, LSTMConfig  # noqa: E402
 
 TINY = LSTMConfig(feature_dim=6, hidden=24, layers=2, dropout=0.0, lr=1e-2, window_frames=16)
 

@@ -2,7 +2,7 @@ import pytest
 import torch
 import torch.nn.functional as F
 
-from stage1_pose.models.variety import best_of
+from stage1_pose.models.ren.variety import best_of
 
 
 def test_best_of_picks_the_closest_draw_per_example():

@@ -1,0 +1,76 @@
+"""The LSTM baseline of Dance Revolution's comparison (after Shlizerman et al. 2018): audio features ->
+stacked LSTM -> poses, one pose per frame, deterministic, trained with L1.
+
+Shapes: audio ``[B, T, feature_dim]`` standardised features; poses ``[B, T, 25, 2]`` model coordinates.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from dancesynth.core.errors import DancesynthError
+from stage1_pose.models.base import Batch, Stage1Method
+from dancesynth.core.skeleton import NUM_JOINTS
+
+
+@dataclass(frozen=True)
+class LSTMConfig:
+    """``hidden`` units in each of ``layers`` LSTM layers; training window ``window_frames`` frames."""
+
+    feature_dim: int = 438
+    hidden: int = 1024
+    layers: int = 3
+    dropout: float = 0.1
+    lr: float = 1e-4
+    batch_size: int = 32
+    window_frames: int = 900
+    epochs: int = 500
+
+    @classmethod
+    def preset(cls, name: str) -> "LSTMConfig":
+        """A named preset from :data:`LSTM_PRESETS`."""
+        if name not in LSTM_PRESETS:
+            raise DancesynthError(f"Unknown lstm preset {name!r}; choose one of {', '.join(LSTM_PRESETS)}.")
+        return LSTM_PRESETS[name]
+
+
+LSTM_PRESETS: dict[str, LSTMConfig] = {
+    # Sized like Dance Revolution's decoder and trained like it (Adam 1e-4, batch 32, 60-s windows).
+    "paper": LSTMConfig(),
+    "small": LSTMConfig(hidden=128, layers=2, dropout=0.0, lr=1e-3, batch_size=16, window_frames=90, epochs=60),
+}
+
+
+class LSTMBaseline(Stage1Method):
+    """Audio features -> LSTM -> linear -> poses; one optimizer ``main``."""
+
+    method_name = "lstm"
+    feature_kind = "dance_revolution"
+
+    def __init__(self, config: LSTMConfig) -> None:
+        super().__init__(config)
+        self.lstm = nn.LSTM(config.feature_dim, config.hidden, num_layers=config.layers, batch_first=True,
+                            dropout=config.dropout if config.layers > 1 else 0.0)
+        self.out = nn.Linear(config.hidden, NUM_JOINTS * 2)
+
+    def forward(self, audio: torch.Tensor) -> torch.Tensor:
+        """``[B, T, feature_dim]`` -> ``[B, T, 25, 2]``."""
+        h, _ = self.lstm(audio)
+        return self.out(h).reshape(audio.shape[0], audio.shape[1], NUM_JOINTS, 2)
+
+    def configure_optimizers(self) -> dict[str, torch.optim.Optimizer]:
+        return {"main": torch.optim.Adam(self.parameters(), lr=self.config.lr)}
+
+    def training_step(self, batch: Batch, epoch: int) -> dict[str, float]:
+        loss = F.l1_loss(self(batch.audio), batch.poses)
+        self.optimize("main", loss)
+        return {"l1": loss.item()}
+
+    @torch.no_grad()
+    def generate(self, audio: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
+        """Deterministic: ``generator`` is ignored."""
+        return self(audio)

@@ -1,0 +1,138 @@
+"""Ren et al.'s pose perceptual loss (Eq. 1) and the ST-GCN it compares features in.
+
+The authors pre-trained their ST-GCN on the Let's Dance dataset; no weights can be downloaded here, so this
+project trains its own on the dataset's style labels (:func:`train_stgcn`, command ``dancesynth train-stgcn``)
+and loads it frozen (:func:`load_stgcn`) while the Ren generator trains.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from dataclasses import asdict, replace
+
+import torch
+import torch.nn.functional as F
+from torch.utils.data import DataLoader
+from tqdm import tqdm
+
+from dancesynth.core.checkpoint import load_checkpoint, save_checkpoint
+from stage1_pose.data.dataset import WindowDataset, collate
+from dancesynth.core.device import resolve_device
+from dancesynth.core.errors import DancesynthError
+from stage1_pose.registry import config_from_dict
+from stage1_pose.models.ren.stgcn import STGCN, STGCN_PRESETS, STGCNConfig
+from dancesynth.core.skeleton import ROOT
+
+CHECKPOINT_KIND = "stgcn"
+# The classifier reads poses only; raw waveform pieces are the audio feature that costs nothing to prepare.
+FEATURE_KIND = "waveform"
+
+
+class PosePerceptualLoss:
+    """L_P = sum_l lambda_l * mean|Phi_l(real) - Phi_l(fake)| over the ST-GCN's blocks (Eq. 1).
+
+    ``layer_weights`` are lambda_l for the first blocks, in order (the official 20, 5, 1, ...); the network
+    must not have more blocks than weights. Deliberately not an ``nn.Module``: the frozen network's weights
+    belong to its own run folder, not to the model being trained.
+    """
+
+    def __init__(self, net: STGCN, layer_weights: Sequence[float]) -> None:
+        n = len(net.blocks)
+        if len(layer_weights) < n:
+            raise DancesynthError(f"The ST-GCN has {n} blocks but only {len(layer_weights)} perceptual layer "
+                                  "weights are configured; give one weight per block.")
+        self.net = net.eval().requires_grad_(False)
+        self.weights = tuple(float(w) for w in layer_weights[:n])
+
+    @classmethod
+    def from_run(cls, run_dir: str | os.PathLike, layer_weights: Sequence[float],
+                 device: torch.device | str = "cpu") -> "PosePerceptualLoss":
+        """The loss over the ST-GCN saved in ``run_dir`` by :func:`train_stgcn`."""
+        return cls(load_stgcn(run_dir, device), layer_weights)
+
+    def __call__(self, real: torch.Tensor, fake: torch.Tensor) -> torch.Tensor:
+        """``[B, T, 25, 2]`` model coordinates each -> scalar loss (0 iff every compared feature agrees)."""
+        self.net.to(real.device)
+        with torch.no_grad():
+            target = self.net.features(real)
+        return sum(w * F.l1_loss(f, t) for w, f, t in zip(self.weights, self.net.features(fake), target))
+
+
+def load_stgcn(run_dir: str | os.PathLike, device: torch.device | str = "cpu") -> STGCN:
+    """The ST-GCN saved by :func:`train_stgcn` in ``run_dir``, in eval mode with gradients off."""
+    if not str(run_dir):
+        raise DancesynthError(
+            "The pose perceptual loss needs a trained ST-GCN: run `dancesynth train-stgcn --data DIR --out RUN` "
+            "and give RUN as the ren method's stgcn_run, or train an ablation preset without it (e.g. local_d-small).")
+    state, meta = load_checkpoint(run_dir, expected_kind=CHECKPOINT_KIND)
+    net = STGCN(config_from_dict(STGCNConfig, meta["config"]))
+    net.load_state_dict(state)
+    return net.to(device).eval().requires_grad_(False)
+
+
+def _augment(poses: torch.Tensor, generator: torch.Generator) -> torch.Tensor:
+    """Random uniform scale (0.8-1.2) and root shift (+-0.5 torso lengths) per sequence, so style is
+    learned from the shape of the movement rather than where on the canvas or how large the dancer is."""
+    b = poses.shape[0]
+    scale = 0.8 + 0.4 * torch.rand(b, 1, 1, 1, generator=generator)
+    shift = torch.rand(b, 1, 1, 2, generator=generator) - 0.5
+    out = poses * scale.to(poses)
+    out[:, :, ROOT:ROOT + 1] += shift.to(poses)
+    return out
+
+
+@torch.no_grad()
+def _accuracy(net: STGCN, loader: DataLoader, device: torch.device) -> float:
+    net.eval()
+    right = total = 0
+    for batch in loader:
+        pred = net(batch.poses.to(device)).argmax(dim=1).cpu()
+        right += int((pred == batch.style).sum())
+        total += len(batch.style)
+    return right / total if total else float("nan")
+
+
+def train_stgcn(data_dir: str | os.PathLike, out_dir: str | os.PathLike, preset: str = "small",
+                epochs: int | None = None, device: str = "auto", seed: int = 0,
+                progress: bool = True) -> dict[str, float]:
+    """Train the ST-GCN to classify the style of pose windows of the dataset in ``data_dir``; save it to
+    ``out_dir`` (``latest.safetensors`` + ``latest.json`` of kind ``stgcn``).
+
+    Windows are ``window_frames`` pose frames with 50 % overlap. Returns ``epochs``, ``train_accuracy`` and
+    ``val_accuracy`` (fractions in [0, 1] of windows whose style is recognised; NaN when the dataset has
+    no validation clips).
+    """
+    if preset not in STGCN_PRESETS:
+        raise DancesynthError(f"Unknown ST-GCN preset {preset!r}; choose one of {', '.join(STGCN_PRESETS)}.")
+    cfg = STGCN_PRESETS[preset] if epochs is None else replace(STGCN_PRESETS[preset], epochs=epochs)
+    if cfg.epochs < 1:
+        raise DancesynthError(f"--epochs must be at least 1, got {cfg.epochs}.")
+    dev = resolve_device(device)
+    torch.manual_seed(seed)
+    stride = max(1, cfg.window_frames // 2)
+    train_set, val_set = (WindowDataset(data_dir, split, FEATURE_KIND, cfg.window_frames, stride,
+                                        standardize=False, progress=progress) for split in ("train", "val"))
+    styles = list(train_set.styles)
+    cfg = cfg.with_classes(len(styles))
+    if len(train_set) == 0:
+        raise DancesynthError(f"The dataset {data_dir} has no training window of {cfg.window_frames} frames; "
+                              "make longer clips with `dancesynth make-dataset --seconds`.")
+    shuffle = torch.Generator().manual_seed(seed)
+    train_loader = DataLoader(train_set, cfg.batch_size, shuffle=True, collate_fn=collate, generator=shuffle)
+    eval_loaders = [DataLoader(d, cfg.batch_size, collate_fn=collate) for d in (train_set, val_set)]
+
+    net = STGCN(cfg).to(dev)
+    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
+    for _ in tqdm(range(cfg.epochs), desc="train-stgcn", unit="epoch", disable=not progress):
+        net.train()
+        for batch in train_loader:
+            loss = F.cross_entropy(net(_augment(batch.poses, shuffle).to(dev)), batch.style.to(dev))
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+    train_acc, val_acc = (_accuracy(net, loader, dev) for loader in eval_loaders)
+    meta = {"kind": CHECKPOINT_KIND, "config": asdict(cfg), "styles": styles, "epoch": cfg.epochs,
+            "train_accuracy": train_acc, "val_accuracy": val_acc}
+    save_checkpoint(out_dir, net, meta)
+    return {"epochs": cfg.epochs, "train_accuracy": train_acc, "val_accuracy": val_acc}

@@ -1,0 +1,131 @@
+"""Pose sequences -> skeleton label maps at the model resolution, framed exactly like the video frames.
+
+A :class:`Framing` fixes, for one target video, which region of its canvas the model sees (a crop box in
+canvas pixels around where the person moves) and how that region is resized to the model's width x height:
+one uniform scale (aspect kept) and black padding, never stretching. Frames and poses go through the same
+framing, so a label map lines up with its frame pixel for pixel.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import asdict, dataclass
+
+import cv2
+import numpy as np
+
+from dancesynth.core.draw import draw_pose
+from dancesynth.core.skeleton import PoseSequence
+
+MIN_CONFIDENCE = 0.05
+# Extra room around the joints' bounding box, as a share of its height (head above the nose, feet, motion blur).
+CROP_MARGIN = 0.15
+# Percentiles of joint positions that bound the crop: robust to a few bad detections.
+CROP_PERCENTILES = (0.5, 99.5)
+
+
+@dataclass(frozen=True)
+class Framing:
+    """Canvas region ``[x0, x0 + crop_width) x [y0, y0 + crop_height)`` (pixels, may extend past the canvas,
+    which reads as black) resized by one factor to ``inner_width x inner_height`` and centred, with black
+    padding, in an ``out_width x out_height`` model image."""
+
+    x0: int
+    y0: int
+    crop_width: int
+    crop_height: int
+    out_width: int
+    out_height: int
+
+    @property
+    def inner_width(self) -> int:
+        return max(1, round(self.crop_width * self._scale))
+
+    @property
+    def inner_height(self) -> int:
+        return max(1, round(self.crop_height * self._scale))
+
+    @property
+    def _scale(self) -> float:
+        return min(self.out_width / self.crop_width, self.out_height / self.crop_height)
+
+    @property
+    def pad_x(self) -> int:
+        return (self.out_width - self.inner_width) // 2
+
+    @property
+    def pad_y(self) -> int:
+        return (self.out_height - self.inner_height) // 2
+
+    def points(self, xy: np.ndarray) -> np.ndarray:
+        """``[..., 2]`` canvas pixels -> model-image pixels (pixel-centre convention of ``cv2.resize``)."""
+        sx = self.inner_width / self.crop_width
+        sy = self.inner_height / self.crop_height
+        out = np.asarray(xy, np.float32).copy()
+        out[..., 0] = (out[..., 0] - self.x0 + 0.5) * sx - 0.5 + self.pad_x
+        out[..., 1] = (out[..., 1] - self.y0 + 0.5) * sy - 0.5 + self.pad_y
+        return out
+
+    def image(self, frame: np.ndarray) -> np.ndarray:
+        """``[H, W, 3]`` uint8 frame of the canvas -> ``[out_height, out_width, 3]`` uint8 model image."""
+        h, w = frame.shape[:2]
+        crop = np.zeros((self.crop_height, self.crop_width, 3), np.uint8)
+        sx0, sy0 = max(self.x0, 0), max(self.y0, 0)
+        sx1, sy1 = min(self.x0 + self.crop_width, w), min(self.y0 + self.crop_height, h)
+        if sx1 > sx0 and sy1 > sy0:
+            crop[sy0 - self.y0:sy1 - self.y0, sx0 - self.x0:sx1 - self.x0] = frame[sy0:sy1, sx0:sx1]
+        inner = cv2.resize(crop, (self.inner_width, self.inner_height), interpolation=cv2.INTER_AREA)
+        out = np.zeros((self.out_height, self.out_width, 3), np.uint8)
+        out[self.pad_y:self.pad_y + self.inner_height, self.pad_x:self.pad_x + self.inner_width] = inner
+        return out
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Framing":
+        return cls(**d)
+
+
+def whole_canvas(width: int, height: int, out_width: int, out_height: int) -> Framing:
+    """Letterbox the full ``width x height`` canvas into the model image."""
+    return Framing(0, 0, int(width), int(height), int(out_width), int(out_height))
+
+
+def person_framing(seq: PoseSequence, out_width: int, out_height: int) -> Framing:
+    """The crop around where the person moves in ``seq`` (all frames), grown to the model's aspect ratio.
+
+    Falls back to the whole canvas when no joint is visible or the person covers most of it anyway.
+    """
+    visible = seq.confidence >= MIN_CONFIDENCE
+    if not visible.any():
+        return whole_canvas(seq.width, seq.height, out_width, out_height)
+    pts = seq.xy[visible]
+    (x_lo, y_lo), (x_hi, y_hi) = np.percentile(pts, CROP_PERCENTILES, axis=0)
+    margin = CROP_MARGIN * max(y_hi - y_lo, x_hi - x_lo, 1.0)
+    x_lo, x_hi, y_lo, y_hi = x_lo - margin, x_hi + margin, y_lo - margin, y_hi + margin
+    aspect = out_width / out_height
+    w, h = x_hi - x_lo, y_hi - y_lo
+    w, h = max(w, h * aspect), max(h, w / aspect)
+    if w >= seq.width and h >= seq.height:
+        return whole_canvas(seq.width, seq.height, out_width, out_height)
+    cx, cy = (x_lo + x_hi) / 2, (y_lo + y_hi) / 2
+    # Slide the box inside the canvas where it fits, so less of the crop is padding.
+    x0 = min(max(cx - w / 2, 0.0), max(seq.width - w, 0.0)) if w <= seq.width else cx - w / 2
+    y0 = min(max(cy - h / 2, 0.0), max(seq.height - h, 0.0)) if h <= seq.height else cy - h / 2
+    return Framing(int(np.floor(x0)), int(np.floor(y0)), int(np.ceil(w)), int(np.ceil(h)), out_width, out_height)
+
+
+def label_map(keypoints: np.ndarray, framing: Framing) -> np.ndarray:
+    """One ``[25, 3]`` pose (canvas pixels + confidence) -> ``[out_height, out_width, 3]`` uint8 RGB label map:
+    OpenPose-coloured limbs and joints on black."""
+    kp = np.asarray(keypoints, np.float32).copy()
+    kp[:, :2] = framing.points(kp[:, :2])
+    canvas = np.zeros((framing.out_height, framing.out_width, 3), np.uint8)
+    return draw_pose(canvas, kp)
+
+
+def label_maps(seq: PoseSequence, framing: Framing) -> Iterator[np.ndarray]:
+    """Stream :func:`label_map` over every frame of ``seq``."""
+    for keypoints in seq.keypoints:
+        yield label_map(keypoints, framing)

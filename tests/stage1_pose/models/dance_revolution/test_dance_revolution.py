@@ -1,0 +1,224 @@
+import dataclasses
+
+import pytest
+import torch
+
+# The machine is shared: one intra-op thread avoids OpenMP contention that makes tiny ops take milliseconds.
+torch.set_num_threads(1)
+
+from stage1_pose.audio import BEAT_COLUMN
+from dancesynth.core.errors import DancesynthError
+from stage1_pose.models.base import Batch
+from stage1_pose.models.dance_revolution.beat_clock import beat_phase
+from stage1_pose.models.dance_revolution.model import (
+    DanceRevolution, DanceRevolutionConfig, LSTMStepper, beat_flags, curriculum_p, joint_speeds, predicted_inputs,
+    sinusoidal_encoding, smooth_in_time)
+
+TINY = DanceRevolutionConfig(feature_dim=12, d_model=16, heads=2, d_k=8, d_v=8, d_ff=32, layers=1, window=6,
+                             dropout=0.0, lstm_hidden=32, lstm_layers=3, lam=0.5, q=3, lr=3e-3, window_frames=20)
+
+
+def test_curriculum_schedules():
+    assert [curriculum_p("linear", t, 0.01, 0, 900) for t in (0, 99, 100, 250)] == [0, 0, 1, 2]
+    assert [curriculum_p("quadratic", t, 0.01, 0, 900) for t in (9, 10, 30)] == [0, 1, 9]
+    assert [curriculum_p("exponential", t, 0.01, 0, 900) for t in (4, 5, 10, 10_000)] == [0, 1, 220, 900]
+    assert curriculum_p("const", 123, 0.01, 7, 900) == 7
+    assert curriculum_p("linear", 10**6, 0.01, 0, 90) == 90
+    with pytest.raises(DancesynthError, match="curriculum"):
+        DanceRevolutionConfig(curriculum="cosine")
+
+
+def test_predicted_inputs_alternate_p_predicted_then_q_ground_truth():
+    assert predicted_inputs(9, 2, 3) == [False, True, True, False, False, False, True, True, False]
+    assert not any(predicted_inputs(9, 0, 3))
+
+
+def test_positional_encoding_any_length():
+    pe = sinusoidal_encoding(9001, 16)
+    assert pe.shape == (9001, 16) and torch.isfinite(pe).all()
+    torch.testing.assert_close(pe[:5], sinusoidal_encoding(5, 16))
+
+
+def test_chunked_encoding_equals_whole_sequence_encoding():
+    encoder = DanceRevolution(dataclasses.replace(TINY, layers=2)).encoder.eval()
+    audio = torch.randn(1, 101, 12)
+    with torch.no_grad():
+        whole = encoder(audio)
+        for chunk in (10, 33, 101, 500):
+            torch.testing.assert_close(encoder.encode_chunked(audio, chunk), whole, rtol=1e-5, atol=1e-5)
+
+
+def test_generate_shapes_seeds_and_length():
+    model = DanceRevolution(TINY).eval()
+    audio = torch.randn(2, 37, 12)
+    a = model.generate(audio, torch.Generator().manual_seed(1))
+    b = model.generate(audio, torch.Generator().manual_seed(1))
+    c = model.generate(audio, torch.Generator().manual_seed(2))
+    assert a.shape == (2, 37, 25, 2)
+    assert torch.equal(a, b) and not torch.allclose(a, c)
+
+
+def song_with_beats(intervals: list[int], frames: int) -> torch.Tensor:
+    """``[1, frames, BEAT_COLUMN + 2]`` standardised features whose beat one-hot repeats ``intervals``."""
+    audio = torch.full((1, frames, BEAT_COLUMN + 2), -0.3)
+    at, i = 0, 0
+    while at < frames:
+        audio[0, at, BEAT_COLUMN] = 2.5
+        at, i = at + intervals[i % len(intervals)], i + 1
+    return audio
+
+
+@pytest.mark.parametrize("code_dim, beat_phase_input", [(0, False), (3, False), (3, True)])
+def test_fused_lstm_runs_and_stepper_agree(code_dim, beat_phase_input):
+    # Feeding the free-running outputs back as "ground truth" must reproduce them, whichever decoder inputs
+    # the curriculum marks as predicted: nn.LSTM runs and per-frame fused steps are the same maths.
+    cfg = dataclasses.replace(TINY, feature_dim=BEAT_COLUMN + 2, code_dim=code_dim, beat_phase_input=beat_phase_input)
+    model = DanceRevolution(cfg).eval()
+    audio = song_with_beats([4, 7], 25)
+    z = model.encoder(audio.expand(2, -1, -1))
+    state = model.decoder.initial_state(2, z.device, torch.Generator().manual_seed(0))
+    extras = model.decoder_extras(audio.expand(2, -1, -1), torch.randn(2, 25, code_dim))
+    assert extras.shape == (2, 25, code_dim + 2 * beat_phase_input)
+    free = model.decoder.generate(z, state, extras)
+    for p in (0, 2, 30):
+        with torch.no_grad():
+            forced = model.decoder(z, state, free, predicted_inputs(25, p, 3), extras)
+        torch.testing.assert_close(forced, free, rtol=1e-5, atol=1e-5)
+
+
+def test_int8_decoding_stays_close_to_fp32():
+    model = DanceRevolution(TINY).eval()
+    audio = torch.randn(1, 30, 12)
+    exact = model.generate(audio, torch.Generator().manual_seed(0))
+    model.prepare_inference("int8")
+    fast = model.generate(audio, torch.Generator().manual_seed(0))
+    assert (fast - exact).abs().max() < 0.05 * exact.abs().max()
+    with pytest.raises(DancesynthError, match="precision"):
+        LSTMStepper(model.decoder.lstm, "int4")
+
+
+def test_tiny_model_overfits_one_clip_with_curriculum():
+    torch.manual_seed(0)
+    model = DanceRevolution(TINY)
+    model._optimizers = model.configure_optimizers()
+    t = torch.linspace(0, 6.28, 20)
+    poses = torch.stack([torch.sin(t + j) for j in range(50)], dim=-1).reshape(1, 20, 25, 2) * 0.5
+    batch = Batch(torch.randn(1, 20, 12), poses, torch.zeros(1, dtype=torch.long))
+    losses = [model.training_step(batch, epoch=e // 30)["l1"] for e in range(120)]
+    assert model.p == 1 and model.curriculum_state()["p"] == 1
+    assert losses[-1] < losses[0] / 5
+
+
+def two_way_dances(move: torch.Tensor, code_dim: int, speed_weight: float = 0.0) -> list[torch.Tensor]:
+    """Train free-running on one song danced two ways (``move`` and its mirror image); dances of 8 seeds."""
+    torch.manual_seed(0)
+    model = DanceRevolution(dataclasses.replace(TINY, code_dim=code_dim, code_frames=20, kl_weight=0.001,
+                                                speed_weight=speed_weight))
+    model._optimizers = model.configure_optimizers()
+    audio = torch.randn(1, 20, 12).expand(2, -1, -1)
+    batch = Batch(audio, torch.stack([move, -move]), torch.zeros(2, dtype=torch.long))
+    for _ in range(300):
+        model.training_step(batch, epoch=100)  # p = 50: every input is the decoder's own output
+    model.eval()
+    return [model.generate(audio[:1], torch.Generator().manual_seed(s))[0] for s in range(8)]
+
+
+def test_choreography_code_makes_the_seed_choose_the_dance(mirrored_move, dances_one_way_or_the_other):
+    # The paper's decoder: whatever its initial state, the L1 loss makes it dance the mean of the two ways.
+    assert max(d.abs().mean() for d in two_way_dances(mirrored_move, 0)) < 0.25 * mirrored_move.abs().mean()
+    # With a code: most seeds dance one of the two ways, and both ways occur.
+    assert dances_one_way_or_the_other(mirrored_move, two_way_dances(mirrored_move, 2), 0.4)
+
+
+def test_speed_loss_keeps_the_dance_moving_when_its_direction_is_uncertain(mirrored_move):
+    # The pose loss alone makes the decoder dance the mean of the two ways, close to standing still; the speed
+    # loss asks for the real dances' speed whichever way the move goes.
+    def speed(dance: torch.Tensor) -> float:
+        return joint_speeds(dance.reshape(1, len(dance), -1)).mean().item()
+
+    real = speed(mirrored_move)
+    assert max(speed(d) for d in two_way_dances(mirrored_move, 0)) < 0.5 * real  # measured: 0.39-0.41
+    assert min(speed(d) for d in two_way_dances(mirrored_move, 0, speed_weight=5.0)) > 0.9 * real  # 0.99
+
+
+def test_code_settings_are_checked():
+    for field, value in (("code_dim", -1), ("code_frames", 0), ("kl_weight", -0.1), ("free_bits", -0.1)):
+        with pytest.raises(DancesynthError, match="code_dim must be"):
+            dataclasses.replace(TINY, **{field: value})
+    with pytest.raises(DancesynthError, match="speed_weight must be"):
+        dataclasses.replace(TINY, speed_weight=-1.0)
+
+
+def test_joint_speeds_are_distances_per_frame_with_a_gradient_at_rest():
+    poses = torch.zeros(1, 3, 25, 2)
+    poses[0, 1:, 1] = torch.tensor([3.0, 4.0])  # joint 1 moves 5 units into frame 1, then rests
+    poses.requires_grad_()
+    speeds = joint_speeds(poses.flatten(2))
+    assert speeds.shape == (1, 2, 25)
+    torch.testing.assert_close(speeds[0, :, 1], torch.tensor([5.0, 0.0]), atol=1e-3, rtol=0)
+    speeds.sum().backward()
+    assert torch.isfinite(poses.grad).all()
+
+
+def test_speed_loss_and_free_bits_train_with_the_decoder():
+    torch.manual_seed(0)
+    model = DanceRevolution(dataclasses.replace(TINY, code_dim=3, code_frames=5, free_bits=0.5, speed_weight=3.0))
+    model._optimizers = model.configure_optimizers()
+    poses = torch.randn(2, 20, 25, 2)
+    scalars = model.training_step(Batch(torch.randn(2, 20, 12), poses, torch.zeros(2, dtype=torch.long)), epoch=0)
+    assert {"l1", "kl", "speed"} <= scalars.keys() and scalars["kl"] > 0 and scalars["speed"] > 0
+
+
+def test_code_segments_follow_the_beat_one_hot():
+    model = DanceRevolution(dataclasses.replace(TINY, feature_dim=BEAT_COLUMN + 2, code_dim=2, code_on_beats=True))
+    audio = torch.full((1, 12, BEAT_COLUMN + 2), -0.3)
+    audio[0, [4, 9], BEAT_COLUMN] = 2.5  # standardised one-hot: beat frames are above the column's mean
+    assert model.segments(audio).tolist() == [[0] * 4 + [1] * 5 + [2] * 3]
+    assert model.generate(audio, torch.Generator().manual_seed(0)).shape == (1, 12, 25, 2)
+    with pytest.raises(DancesynthError, match="beat one-hot"):
+        dataclasses.replace(TINY, code_dim=2, code_on_beats=True)
+    with pytest.raises(DancesynthError, match="beat one-hot"):
+        dataclasses.replace(TINY, beat_phase_input=True)
+    with pytest.raises(DancesynthError, match="z_smoothing"):
+        dataclasses.replace(TINY, z_smoothing=-1.0)
+
+
+def test_smoothing_in_time_keeps_the_mean_and_damps_frame_to_frame_changes():
+    x = torch.randn(2, 50, 3)
+    assert smooth_in_time(x, 0.0) is x
+    smooth = smooth_in_time(x, 2.0)
+    assert smooth.shape == x.shape
+    torch.testing.assert_close(smooth_in_time(torch.full((1, 9, 2), 3.0), 2.0), torch.full((1, 9, 2), 3.0))
+    assert smooth.diff(dim=1).abs().mean() < 0.3 * x.diff(dim=1).abs().mean()
+    assert (smooth.mean(dim=1) - x.mean(dim=1)).abs().max() < 0.1
+
+
+def dance_on_the_beats(audio: torch.Tensor, shape: torch.Tensor) -> torch.Tensor:
+    """``[1, T, 25, 2]``: the body swings out to ``shape`` and back in every beat interval, still on the beats."""
+    phase = beat_phase(beat_flags(audio))
+    return ((1 - torch.cos(2 * torch.pi * phase))[..., None] / 2 * shape).reshape(1, -1, 25, 2)
+
+
+def beat_timing_error(beat_phase_input: bool) -> float:
+    """Train free-running on one song with uneven beats; relative L1 error of the dance generated for a song
+    with other beats."""
+    torch.manual_seed(0)
+    shape = torch.randn(50) * 0.5
+    model = DanceRevolution(dataclasses.replace(TINY, feature_dim=BEAT_COLUMN + 2, window_frames=48,
+                                                beat_phase_input=beat_phase_input))
+    model._optimizers = model.configure_optimizers()
+    audio = song_with_beats([4, 7, 5, 8, 6], 48)
+    batch = Batch(audio, dance_on_the_beats(audio, shape), torch.zeros(1, dtype=torch.long))
+    for _ in range(150):
+        model.training_step(batch, epoch=100)
+    new_song = song_with_beats([6, 9, 5], 48)
+    wanted = dance_on_the_beats(new_song, shape)
+    return float((model.eval().generate(new_song, torch.Generator().manual_seed(0)) - wanted).abs().mean()
+                 / wanted.abs().mean())
+
+
+def test_beat_phase_input_times_the_moves_by_a_new_songs_beats():
+    # The paper's decoder hears the music only through the output layer and its own fed-back poses: it learns
+    # the training song's rhythm, not to follow the beats. With the beat phase it follows another song's beats.
+    assert beat_timing_error(True) < 0.25
+    assert beat_timing_error(False) > 0.4

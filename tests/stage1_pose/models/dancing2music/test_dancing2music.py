@@ -1,0 +1,233 @@
+from dataclasses import replace
+
+import numpy as np
+import pytest
+import torch
+
+from stage1_pose.models.dancing2music import dance_units as du
+from dancesynth.core.errors import DancesynthError
+from stage1_pose.models.base import Batch
+from stage1_pose.models.dancing2music.model import (
+    DANCING2MUSIC_PRESETS, POSE_DIM, Dancing2MusicConfig, Dancing2MusicMethod, absolute_positions, shift_root,
+    unit_motion)
+from dancesynth.core.skeleton import ROOT
+
+TINY = replace(DANCING2MUSIC_PRESETS["small"], gru_hidden=32, mlp_hidden=32, z_mov=8, z_dan=8, noise_dim=4,
+               lr=3e-3, epochs=2, decomp_epochs=1)
+
+
+@pytest.fixture(autouse=True, scope="module")
+def one_thread():
+    """These tiny recurrent nets run several times faster on one thread than on contended cores."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+def _dance(frames: int, period: float, phase: float = 0.0) -> np.ndarray:
+    """``[T, 25, 2]`` model coordinates: a body whose arms swing with ``period`` frames (kinematic beats at the
+    turning points) and whose root sways slowly."""
+    t = np.arange(frames)[:, None]
+    rng = np.random.default_rng(0)
+    base = rng.normal(0, 0.6, (25, 2))
+    pose = np.repeat(base[None], frames, axis=0)
+    swing = np.sin(2 * np.pi * t / period + phase)
+    pose[:, [3, 4, 6, 7], 1] += 0.8 * swing
+    pose[:, [3, 4, 6, 7], 0] += 0.3 * swing
+    pose[:, ROOT, 0] = 0.2 * np.sin(2 * np.pi * t[:, 0] / (4 * period))
+    return pose.astype(np.float32)
+
+
+def _batch(b: int = 4, frames: int = 240) -> Batch:
+    poses = np.stack([_dance(frames, 15.0 + k, k) for k in range(b)])
+    audio = np.random.default_rng(1).normal(size=(b, frames, 28)).astype(np.float32)
+    return Batch(torch.from_numpy(audio), torch.from_numpy(poses), torch.arange(b) % 3)
+
+
+@pytest.fixture(scope="module")
+def trained(one_thread) -> Dancing2MusicMethod:
+    """A tiny model after a few steps of each phase."""
+    torch.manual_seed(0)
+    model = Dancing2MusicMethod(TINY)
+    model._optimizers = model.configure_optimizers()
+    batch = _batch()
+    for epoch in (0, 0, 1, 1):
+        model.training_step(batch, epoch)
+    return model.eval()
+
+
+def test_network_shapes():
+    torch.manual_seed(0)
+    m = Dancing2MusicMethod(TINY)
+    units = torch.randn(6, du.UNIT_FRAMES, POSE_DIM)
+    mu_i, lv_i = m.e_ini(units[:, 0])
+    mu_m, lv_m = m.e_mov(units)
+    assert mu_i.shape == lv_i.shape == (6, TINY.z_ini) and mu_m.shape == lv_m.shape == (6, TINY.z_mov)
+    assert m.g_uni(mu_i, mu_m).shape == (6, du.UNIT_FRAMES, POSE_DIM)
+    anchor = torch.randn(6, POSE_DIM)
+    assert torch.allclose(m.g_uni(mu_i, mu_m, anchor)[:, 0], anchor)
+    logits, s = m.style(torch.randn(6, 50, 28))
+    assert logits.shape == (6, 3) and s.shape == (6, TINY.style_hidden)
+    z_movs = torch.randn(2, 4, TINY.z_mov)
+    mu_d, _ = m.e_mtd(z_movs)
+    assert mu_d.shape == (2, TINY.z_dan)
+    assert m.g_dan(mu_d, 5).shape == (2, 5, TINY.z_mov)
+    assert m.e_std(torch.randn(2, TINY.style_hidden), torch.randn(2, TINY.noise_dim)).shape == (2, TINY.z_dan)
+    assert m.e_sty(mu_d).shape == (2, TINY.style_hidden)
+    assert m.d_mov(z_movs, torch.randn(2, 4, du.UNIT_FRAMES, 28)).shape == (2,)
+    assert m.d_dan(mu_d).shape == (2, 1)
+
+
+def test_paper_preset_sizes_and_ablation():
+    paper = Dancing2MusicConfig.preset("paper")
+    assert (paper.gru_hidden, paper.z_mov, paper.z_ini, paper.z_dan) == (1024, 512, 10, 512)
+    assert (paper.w_kl, paper.w_shift, paper.w_adv, paper.w_style, paper.lr, paper.betas) == (
+        0.01, 1.0, 0.1, 1.0, 1e-4, (0.5, 0.999))
+    nocomp = Dancing2MusicMethod(replace(TINY, composition=False, decomp_epochs=TINY.epochs))
+    assert set(nocomp.configure_optimizers()) == {"vae", "style"}
+    assert nocomp.phase(10 ** 6) == "decomposition"
+    with pytest.raises(DancesynthError, match="Unknown dancing2music preset"):
+        Dancing2MusicConfig.preset("huge")
+    # The paper's warper puts the normalised unit beats on the music beats; the CPU preset also aligns and accents.
+    assert (paper.warp_stretch, paper.beat_accent) == (1.0, 0.0)
+    small = Dancing2MusicConfig.preset("small-nocomp")
+    assert small.warp_stretch > 1 and 0 < small.beat_accent < 1
+    with pytest.raises(DancesynthError, match="beat_accent"):
+        replace(TINY, beat_accent=1.0)
+
+
+def test_shift_moves_only_the_root():
+    units = torch.randn(3, du.UNIT_FRAMES, 25, 2)
+    moved = shift_root(units, torch.ones(3, 2))
+    assert torch.allclose((moved - units)[:, :, ROOT], torch.ones(3, du.UNIT_FRAMES, 2))
+    assert torch.equal(torch.cat([moved[:, :, :ROOT], moved[:, :, ROOT + 1:]], 2),
+                       torch.cat([units[:, :, :ROOT], units[:, :, ROOT + 1:]], 2))
+    poses = np.random.default_rng(0).normal(size=(4, 25, 2))
+    absolute = absolute_positions(poses)
+    np.testing.assert_allclose(absolute[:, 0] - absolute[:, ROOT], poses[:, 0])
+
+
+def test_tiny_du_vae_learns_to_reconstruct_units():
+    torch.manual_seed(0)
+    model = Dancing2MusicMethod(TINY)
+    model._optimizers = model.configure_optimizers()
+    poses = _dance(200, 15.0)
+    beats = np.arange(2, 190, 7.5)
+    units = torch.from_numpy(du.cut_units(poses, du.unit_runs(beats, 3, 20)[0]))
+    first = model.decomposition_losses(units)["recon"].item()
+    for _ in range(150):
+        model.optimize("vae", model.decomposition_losses(units)["total"])
+    last = model.decomposition_losses(units)["recon"].item()
+    assert last < first / 4, (first, last)
+    assert last < 0.1
+
+
+def test_training_steps_cover_both_phases(trained):
+    assert trained.phase_steps.tolist()[0] >= 1 and trained.phase_steps.tolist()[1] >= 1
+    assert trained.curriculum_state() == {"phase_steps": trained.phase_steps.tolist()}
+    assert 3.0 <= float(trained.beat_interval) <= 20.0
+
+
+def test_generation_length_and_seeds(trained):
+    audio = torch.from_numpy(np.random.default_rng(2).normal(size=(2, 97, 28)).astype(np.float32))
+    beats = [np.arange(3.0, 97.0, 7.0), np.arange(1.0, 97.0, 8.5)]
+
+    def gen(seed):
+        return trained.generate(audio, torch.Generator().manual_seed(seed), beat_frames=beats)
+
+    a, b, c = gen(0), gen(0), gen(1)
+    assert a.shape == (2, 97, 25, 2)
+    assert torch.equal(a, b)
+    assert (a - c).abs().mean() > 1e-3
+    assert torch.isfinite(a).all()
+
+
+def test_generation_without_beats_uses_the_loudness_channel(trained):
+    frames = 120
+    audio = np.zeros((1, frames, 28), np.float32)
+    audio[0, ::8, 27] = 1.0  # a loudness rise every 8 frames
+    out = trained.generate(torch.from_numpy(audio), torch.Generator().manual_seed(0))
+    assert out.shape == (1, frames, 25, 2)
+
+
+def test_real_unit_motion_is_learned_and_still_draws_are_redrawn(trained):
+    whole_dances = _batch().poses.flatten(2)
+    assert float(trained.unit_motion) == pytest.approx(unit_motion(whole_dances), rel=0.3)
+    audio_units = torch.zeros(7, du.UNIT_FRAMES, 28)
+    saved_config, saved_motion = trained.config, trained.unit_motion.clone()
+    try:
+        trained.config = replace(TINY, redraw_tries=1)
+        once = trained.dance_units(audio_units, torch.Generator().manual_seed(5))
+        trained.config = replace(TINY, redraw_tries=8)
+        trained.unit_motion.fill_(1e6)  # unreachable: every group keeps its liveliest of 8 draws
+        best = trained.dance_units(audio_units, torch.Generator().manual_seed(5))
+        trained.unit_motion.fill_(0.0)  # every first draw passes: nothing is redrawn
+        again = trained.dance_units(audio_units, torch.Generator().manual_seed(5))
+    finally:
+        trained.config = saved_config
+        trained.unit_motion.copy_(saved_motion)
+    assert best.shape == once.shape == (7, du.UNIT_FRAMES, 25, 2)
+    assert torch.equal(once, again)
+    first_group = slice(0, TINY.max_units)
+    assert unit_motion(best[first_group].flatten(2)) > unit_motion(once[first_group].flatten(2))
+    with pytest.raises(DancesynthError, match="redraw"):
+        replace(TINY, redraw_tries=0)
+
+
+def test_runs_saved_before_the_redraw_threshold_load_without_redraws(trained):
+    state = {k: v for k, v in trained.state_dict().items() if k != "unit_motion"}
+    older = Dancing2MusicMethod(TINY)
+    older.load_state_dict(state)
+    assert float(older.unit_motion) == 0.0
+
+
+def test_model_before_composition_generates_from_the_prior(trained):
+    fresh = Dancing2MusicMethod(TINY).eval()
+    assert not fresh.composes and trained.composes
+    out = fresh.generate(torch.zeros(1, 60, 28), torch.Generator().manual_seed(0), beat_frames=[np.arange(0, 60, 8.0)])
+    assert out.shape == (1, 60, 25, 2)
+
+
+def test_ablation_without_composition_draws_movements_from_the_prior():
+    torch.manual_seed(0)
+    model = Dancing2MusicMethod(replace(TINY, composition=False, decomp_epochs=TINY.epochs)).eval()
+    out = model.generate(torch.zeros(1, 80, 28), torch.Generator().manual_seed(3), beat_frames=[np.arange(2, 80, 9.0)])
+    assert out.shape == (1, 80, 25, 2) and torch.isfinite(out).all()
+
+
+def test_both_phases_train_through_the_shared_trainer(tiny_stage1_dataset, tmp_path):
+    import shutil
+
+    from stage1_pose.generate import generate_from_features, load_pose_model
+    from stage1_pose.train import TrainerConfig, train
+
+    data = tmp_path / "data"
+    shutil.copytree(tiny_stage1_dataset, data)
+    feats = data / "features" / "dancing2music"
+    feats.mkdir(parents=True, exist_ok=True)  # another test may have computed them in the shared dataset
+    rng = np.random.default_rng(0)
+    for clip in (data / "poses").glob("*.npz"):
+        np.save(feats / f"{clip.stem}.npy", rng.standard_normal((120, 28)).astype(np.float32))
+    overrides = dict(gru_hidden=16, mlp_hidden=16, z_mov=8, z_dan=8, noise_dim=4, min_units=1, max_units=2,
+                     window_frames=120, batch_size=2, epochs=2, decomp_epochs=1)
+    meta = train("dancing2music", data, tmp_path / "run", overrides=overrides, device="cpu",
+                 options=TrainerConfig(preview_every=0))
+    assert meta["epoch"] == 2 and min(meta["curriculum"]["phase_steps"]) >= 1
+    model = load_pose_model(tmp_path / "run", "cpu")
+    dance = generate_from_features(model, rng.standard_normal((75, 28)).astype(np.float32), seed=1)
+    assert dance.keypoints.shape == (75, 25, 3)
+
+
+def test_relative_movement_codes_ignore_where_a_unit_starts():
+    """With relative_movement the movement code depends on the motion only, not on the unit's position."""
+    m = Dancing2MusicMethod(replace(TINY, relative_movement=True, motion_scale=20.0)).eval()
+    units = torch.from_numpy(np.stack([_dance(32, 8.0, phase) for phase in (0.0, 1.0)])).float()
+    shifted = shift_root(units, torch.tensor([[0.3, -0.1], [0.2, 0.1]]))
+    with torch.no_grad():
+        mu, _ = m.e_mov(units.flatten(2))
+        mu_shifted, _ = m.e_mov(shifted.flatten(2))
+        decoded = m.g_uni(torch.zeros(2, TINY.z_ini), mu, units.flatten(2)[:, 0])
+    np.testing.assert_allclose(mu.numpy(), mu_shifted.numpy(), atol=1e-5)
+    # The decoder's displacements are motion_scale times smaller than its raw outputs: a fresh model moves little.
+    assert (decoded - decoded[:, :1]).abs().max() < 0.2
