@@ -8,21 +8,24 @@ STAMP := $(VENV)/.installed
 MEDIAPIPE := mediapipe==0.10.21
 export NUMBA_CACHE_DIR := $(CURDIR)/$(VENV)/numba-cache
 
-.PHONY: demo test install clean
+.PHONY: demo test lint install clean
 
 install: $(STAMP)
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml constraints.txt
 	$(PY) -m pip --version >/dev/null 2>&1 || $(PYTHON) -m venv --clear $(VENV)
 	$(PY) -m pip install --upgrade pip
-	$(PY) -m pip install -e ".[pose,test]"
+	$(PY) -m pip install -c constraints.txt -e ".[pose,test]"
 	$(PY) -m pip install --no-deps $(MEDIAPIPE)
 	touch $@
 
 demo: $(STAMP)
 	OMP_NUM_THREADS=1 $(VENV)/bin/dancesynth demo --out demo_output
 
-test: $(STAMP)
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+
+test: lint
 	OMP_NUM_THREADS=1 $(PY) -m pytest -q
 
 clean:

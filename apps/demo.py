@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import csv
 import json
+import logging
 import multiprocessing
 import os
 import sys
@@ -21,19 +22,22 @@ from typing import Any
 import numpy as np
 import torch
 
-from apps.pipeline import SONG_SR, dance
-from stage1_pose.data.dataset import Clip, DanceDataset
-from stage1_pose.data.make_dataset import make_dataset
+from apps.cli import configure_logging
+from apps.pipeline import dance
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
-from dancesynth.core.motion import kinematic_beats
-from stage1_pose.generate import generate_dance, load_pose_model
-from dancesynth.core.media import load_song, read_frames
-from stage1_pose.metrics import beat_align_score, beat_coverage, beat_hit_rate
+from dancesynth.core.media import SONG_SAMPLE_RATE, load_song, read_frames
+from dancesynth.core.motion import kinematic_beats, mean_speed
 from dancesynth.core.skeleton import PoseSequence, body_scale, resample
+from stage1_pose.data.dataset import Clip, DanceDataset
+from stage1_pose.data.make_dataset import make_dataset
+from stage1_pose.generate import generate_dance, load_pose_model
+from stage1_pose.metrics import beat_align_score, beat_coverage, beat_hit_rate
 from stage1_pose.train import TrainerConfig, train
 from stage2_video.synthetic_person import appearance_preset, write_person_video
 from stage2_video.train import TrainOptions, train_video
+
+logger = logging.getLogger(__name__)
 
 # Dancing2Music warps its units onto the song's beats; trained for the demo's minutes, Dance Revolution held a
 # near-mean pose. Its composition phase (MM-GAN) needs far more than the demo's minutes: after 100 epochs it
@@ -61,9 +65,8 @@ class DemoPlan:
 
 
 def _mean_speed(seq: PoseSequence) -> float:
-    """Mean joint speed in body heights per second (scale-free, so real and generated dances compare)."""
-    v = np.linalg.norm(np.diff(seq.xy, axis=0), axis=-1).mean() * seq.fps
-    return float(v / body_scale(seq))
+    """Mean joint speed in torso lengths per second (scale-free, so real and generated dances compare)."""
+    return mean_speed(seq.xy, seq.fps, unit_length=body_scale(seq))
 
 
 def dance_metrics(seq: PoseSequence, beats: np.ndarray) -> dict[str, float]:
@@ -86,7 +89,8 @@ def _contact_sheet(video: Path, out: Path, count: int = 6) -> None:
     frames = list(read_frames(video))
     picks = [frames[i] for i in np.linspace(0, len(frames) - 1, count).astype(int)]
     scale = 256 / picks[0].shape[0]
-    strip = np.concatenate([cv2.resize(f, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA) for f in picks], axis=1)
+    strip = np.concatenate([cv2.resize(f, None, fx=scale, fy=scale, interpolation=cv2.INTER_AREA) for f in picks],
+                           axis=1)
     with atomic_path(out) as tmp:
         cv2.imwrite(str(tmp), cv2.cvtColor(strip, cv2.COLOR_RGB2BGR))
 
@@ -98,6 +102,7 @@ def _train_pose(log: Path, data_dir: Path, run: Path, preset: str, minutes: floa
     torch.set_num_threads(1)
     with open(log, "w") as f:
         sys.stdout = sys.stderr = f
+        configure_logging(logging.INFO, f)
         try:
             train(POSE_METHOD, data_dir, run, preset=preset, minutes=minutes, device=device, overrides=overrides,
                   options=TrainerConfig(preview_every=50, seed=seed))
@@ -122,10 +127,11 @@ def _last_row(path: Path) -> dict[str, str]:
 
 
 def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, device: str = "auto",
-             plan: DemoPlan = DemoPlan()) -> list[Path]:
+             plan: DemoPlan | None = None) -> list[Path]:
     """Run every demo step under ``out_dir`` within about ``minutes`` minutes; returns the files written."""
     if minutes <= 1:
         raise DancesynthError("--minutes must be more than 1; the demo needs time to train two models.")
+    plan = plan or DemoPlan()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     timings: dict[str, float] = {}
@@ -137,7 +143,7 @@ def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, d
         now = time.monotonic()
         timings[name] = now - clock
         clock = now
-        print(f"[demo] {name}: {timings[name]:.0f} s", flush=True)
+        logger.info(f"[demo] {name}: {timings[name]:.0f} s")
 
     data_dir = out / "dataset"
     if not (data_dir / "manifest.json").is_file():
@@ -158,8 +164,8 @@ def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, d
             target=_train_pose, args=(pose_log, data_dir, pose_run, plan.pose_preset, pose_minutes, device,
                                       plan.pose_overrides, seed))
         pose_job.start()
-        print(f"[demo] stage-1 training ({POSE_METHOD}, {pose_minutes:.1f} min) in the background, log: {pose_log}",
-              flush=True)
+        logger.info(f"[demo] stage-1 training ({POSE_METHOD}, {pose_minutes:.1f} min) in the background, "
+                    f"log: {pose_log}")
     threads = torch.get_num_threads()
     if pose_job is not None:
         torch.set_num_threads(1)
@@ -211,9 +217,9 @@ def _summary(out: Path, dataset: DanceDataset, clip: Clip, pose_run: Path, video
              timings: dict[str, float], seed: int, device: str, plan: DemoPlan) -> Path:
     seconds = plan.dance_seconds
     beats = np.array(json.loads((dataset.root / clip.beats).read_text())["beats"])
-    samples = load_song(dataset.root / clip.audio, SONG_SR)[: int(seconds * SONG_SR)]
+    samples = load_song(dataset.root / clip.audio, SONG_SAMPLE_RATE)[: int(seconds * SONG_SAMPLE_RATE)]
     model = load_pose_model(pose_run, device)
-    generated = generate_dance(model, samples, SONG_SR, seed=seed)
+    generated = generate_dance(model, samples, SONG_SAMPLE_RATE, seed=seed)
     real = dataset.load_poses(clip).slice_frames(0, len(generated))
     rows = {f"generated ({POSE_METHOD}, {plan.pose_preset})": dance_metrics(generated, beats),
             "real dance": dance_metrics(real, beats)}

@@ -1,6 +1,6 @@
 """Song + trained models -> dancing video: the composition behind `dancesynth dance`.
 
-Data path (see ARCHITECTURE.md): decode the song, cut the requested segment, stage 1 generates a dance at
+Data path (see docs/architecture.md): decode the song, cut the requested segment, stage 1 generates a dance at
 the pose model's fps, the dance is resampled to the target video's fps and normalised onto the target's
 body (Everybody Dance Now), stage 2 renders frames that stream into the H.264 encoder, and the segment's
 audio is muxed in. Every output is written under a temporary name and renamed when complete.
@@ -14,18 +14,15 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from dancesynth.core.errors import DancesynthError
-from stage1_pose.generate import generate_dance, load_pose_model
-from dancesynth.core.media import VideoWriter, load_song
+from dancesynth.core.media import SONG_SAMPLE_RATE, VideoWriter, load_song
+from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence, resample
-from stage2_video.render import AppearanceModel, load_appearance_model, render_frames, target_poses
+from stage1_pose.generate import generate_dance, load_pose_model
 from stage2_video.framing import label_map
+from stage2_video.render import load_appearance_model, render_frames, target_poses
 
-# Songs are decoded once at this rate; stage 1 resamples to what its features need, and the same samples
-# become the output's AAC track.
-SONG_SR = 44100
 # Method tried first when a folder of several pose-model runs is given without --method.
 DEFAULT_METHOD = "dance_revolution"
 
@@ -81,11 +78,12 @@ def dance(song: str | os.PathLike, pose_model: str | os.PathLike, video_model: s
         skeleton_preview: optional mp4 of the dance as a skeleton (target canvas, with the song).
         side_by_side: optional mp4 of skeleton input | generated person, with the song.
     """
-    segment = song_segment(load_song(song, SONG_SR), SONG_SR, start, duration)
-    if len(segment) < SONG_SR:
+    # The song is decoded once; the same samples become the output's AAC track.
+    segment = song_segment(load_song(song, SONG_SAMPLE_RATE), SONG_SAMPLE_RATE, start, duration)
+    if len(segment) < SONG_SAMPLE_RATE:
         raise DancesynthError("The chosen song segment is shorter than 1 s; choose a longer --duration.")
     pose_model_loaded = load_pose_model(find_pose_run(pose_model, method), device)
-    poses = generate_dance(pose_model_loaded, segment, SONG_SR, seed=seed)
+    poses = generate_dance(pose_model_loaded, segment, SONG_SAMPLE_RATE, seed=seed)
     appearance = load_appearance_model(video_model, device)
     # The video has the target's frame rate; the dance keeps its timing (resampled in seconds, not frames).
     poses = target_poses(appearance, resample(poses, appearance.fps))
@@ -97,10 +95,11 @@ def dance(song: str | os.PathLike, pose_model: str | os.PathLike, video_model: s
         outputs.append((Path(side_by_side), 2 * width))
     # One generator pass feeds every output, so the extra videos cost encoding only.
     with contextlib.ExitStack() as stack:
-        writers = [stack.enter_context(VideoWriter(path, poses.fps, w, height, audio=segment, audio_sr=SONG_SR))
+        writers = [stack.enter_context(VideoWriter(path, poses.fps, w, height, audio=segment,
+                                                     audio_sr=SONG_SAMPLE_RATE))
                    for path, w in outputs]
         rendered = render_frames(appearance, poses, normalize=False)
-        for keypoints, frame in tqdm(zip(poses.keypoints, rendered), total=len(poses), desc="rendering",
+        for keypoints, frame in track(zip(poses.keypoints, rendered), total=len(poses), desc="rendering",
                                      unit="frame", disable=not progress):
             label = label_map(keypoints, appearance.framing) if len(writers) > 1 else None
             writers[0].write(frame)

@@ -9,6 +9,7 @@ train/val/test split, so no song is both trained on and evaluated on.
 
 from __future__ import annotations
 
+import logging
 import os
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -16,12 +17,13 @@ from pathlib import Path
 
 import numpy as np
 
-from stage1_pose.data.importers import add_clip_samples, song_id
-from stage1_pose.data.layout import MANIFEST, read_manifest
-from stage1_pose.data.synth_music import SAMPLE_RATE
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import load_song
 from dancesynth.core.skeleton import PoseSequence
+from stage1_pose.data.importers import add_clip_samples, song_id
+from stage1_pose.data.layout import MANIFEST, SAMPLE_RATE, read_manifest
+
+logger = logging.getLogger(__name__)
 
 VIDEO_SUFFIXES = (".mp4", ".mov", ".m4v", ".mkv", ".avi", ".webm")
 
@@ -75,8 +77,8 @@ def prepare_videos(videos_dir: str | os.PathLike, out_dir: str | os.PathLike, cl
     """Add every video of ``videos_dir`` to the dataset folder ``out_dir`` (created when new).
 
     Videos whose clips are all in the dataset already are left alone, so the command can be re-run after adding
-    videos (or after an interruption). A video without a soundtrack, without one clearly visible person, or
-    unreadable is skipped with the reason; the others are still added.
+    videos (or after an interruption). A video without a soundtrack, without one clearly visible person,
+    unreadable, or a link to a file outside ``videos_dir`` is skipped with the reason; the others are still added.
 
     Args:
         clip_seconds: target clip length in seconds (a video is cut into equal parts of about this length).
@@ -87,12 +89,16 @@ def prepare_videos(videos_dir: str | os.PathLike, out_dir: str | os.PathLike, cl
         raise DancesynthError(f"--clip-seconds must be at least 2 s, got {clip_seconds:g}.")
     extract = extract or (lambda video: _blazepose_dancer(video, progress))
     videos = find_videos(videos_dir, default_style)
+    inside = Path(videos_dir).resolve()
     existing = {c.id for c in read_manifest(out_dir).clips} if (Path(out_dir) / MANIFEST).exists() else set()
     report = PrepareReport()
     for number, (video, style) in enumerate(videos, start=1):
         if progress:
-            print(f"[{number}/{len(videos)}] {video} (style {style})", flush=True)
+            logger.info(f"[{number}/{len(videos)}] {video} (style {style})")
         try:
+            if not video.resolve().is_relative_to(inside):
+                raise DancesynthError(f"{video} is a link to a file outside {videos_dir}; copy the video into "
+                                      "the folder to use it.")
             samples = load_song(video, SAMPLE_RATE)
             bounds = clip_bounds(len(samples) / SAMPLE_RATE, clip_seconds)
             ids = [_clip_id(style, video, i) for i in range(len(bounds))]
@@ -112,5 +118,5 @@ def prepare_videos(videos_dir: str | os.PathLike, out_dir: str | os.PathLike, cl
         except DancesynthError as e:
             report.skipped[str(video)] = str(e)
             if progress:
-                print(f"  skipped: {e}", flush=True)
+                logger.info(f"  skipped: {e}")
     return report

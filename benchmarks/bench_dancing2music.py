@@ -7,11 +7,11 @@ compares them with the real dances:
   scale), against the 99th percentile of the same quantity over the real train-split dances;
 * beats: beat hit rate (share of kinematic beats within 2 frames of a tracked music beat) and beat coverage
   (kinematic beats per music beat), Lee et al. 2019 Sec. 4, with the music beats tracked on the audio
-  (:func:`stage1_pose.audio.beat_times`) for real and generated dances alike.
+  (:func:`stage1_pose.beats.beat_times`) for real and generated dances alike.
 
 Each run is measured through :func:`stage1_pose.generate.generate_dance` as users get it (the song's tracked
-beats go to the model's beat warper), with the features alone (the model then finds beats on their loudness
-channel), and with the paper's warper (normalised unit beats on the music beats, no accent) in place of the run's.
+beats go to the model's beat warper), and with the paper's warper (normalised unit beats on the music beats, no
+accent) in place of the run's.
 
 Usage: python benchmarks/bench_dancing2music.py --data DATA_DIR --model RUN_DIR [--model RUN_DIR2 ...]
        [--seconds 60] [--seeds 3] [--device auto]
@@ -25,19 +25,19 @@ from pathlib import Path
 
 import numpy as np
 
-from stage1_pose import audio
+from dancesynth.core.motion import joint_speeds, kinematic_beats
+from dancesynth.core.skeleton import PoseSequence, interpolate_missing, normalize
+from stage1_pose.beats import beat_times
 from stage1_pose.data.dataset import DanceDataset
-from stage1_pose.generate import generate_dance, generate_from_features, load_pose_model
-from dancesynth.core.motion import kinematic_beats
+from stage1_pose.generate import generate_dance, load_pose_model
 from stage1_pose.metrics import beat_hit_rate
 from stage1_pose.models.dancing2music.model import absolute_positions
-from dancesynth.core.skeleton import PoseSequence, interpolate_missing, normalize
 
 
 def frame_jumps(seq: PoseSequence) -> np.ndarray:
     """``[T - 1]`` largest joint displacement between consecutive frames, in torso lengths."""
     xy = absolute_positions(normalize(seq)[0])
-    return np.linalg.norm(np.diff(xy, axis=0), axis=-1).max(axis=1)
+    return joint_speeds(xy, seq.fps).max(axis=1) / seq.fps
 
 
 def beat_scores(seq: PoseSequence, music_beats_s: np.ndarray) -> tuple[int, int, int]:
@@ -66,21 +66,19 @@ def main() -> None:
         real = interpolate_missing(ds.load_poses(clip))
         real = real.slice_frames(0, min(len(real), int(args.seconds * real.fps)))
         samples = ds.load_audio(clip)[: int(args.seconds * ds.sample_rate)]
-        songs.append((clip.id, real, samples, audio.beat_times(samples, ds.sample_rate)))
+        songs.append((clip.id, real, samples, beat_times(samples, ds.sample_rate)))
 
     rows = [("real (test)", [s[1] for s in songs], [s[3] for s in songs])]
     for run in args.model:
         model = load_pose_model(run, args.device)
         own = model.method.config
-        for label, tracked, config in (("tracked beats", True, own), ("feature beats", False, own),
-                                       ("paper warper", True, replace(own, warp_stretch=1.0, beat_accent=0.0))):
+        for label, config in (("tracked beats", own),
+                              ("paper warper", replace(own, warp_stretch=1.0, beat_accent=0.0))):
             model.method.config = config
             dances, beats = [], []
             for _, _, samples, music in songs:
-                features = audio.extract_features(samples, ds.sample_rate, model.feature_kind, model.fps)
                 for seed in range(args.seeds):
-                    dances.append(generate_dance(model, samples, ds.sample_rate, seed=seed) if tracked
-                                  else generate_from_features(model, features, seed=seed))
+                    dances.append(generate_dance(model, samples, ds.sample_rate, seed=seed))
                     beats.append(music)
             rows.append((f"{Path(run).name} {label}", dances, beats))
 

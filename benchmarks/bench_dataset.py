@@ -3,10 +3,11 @@
 Generates ``--clips`` songs of ``--seconds`` seconds (default: the full 100 x 60 s dataset) into a temporary
 folder (or ``--out``), timing :func:`stage1_pose.data.make_dataset.make_dataset`. Then, per style:
 
-* ``beat F``: F-measure (+-70 ms) of :func:`stage1_pose.audio.beat_times` on each song against the exact beats
+* ``beat F``: F-measure (+-70 ms) of :func:`stage1_pose.beats.beat_times` on each song against the exact beats
   the song was synthesised with (mean and minimum over songs);
 * ``KB hit`` / ``VM hit``: fraction of the dance's kinematic beats (Dancing2Music offsets /
-  velocity minima) within +-1 pose frame of a music beat, and ``chance``: the same for as many random frames.
+  velocity minima) within +-1 pose frame of a music beat, and ``chance``: the same for the Dancing2Music beats
+  shifted by random offsets (:func:`dancesynth.core.motion.chance_hit_rate`).
 
     .venv/bin/python benchmarks/bench_dataset.py                          # 100 clips x 60 s
     .venv/bin/python benchmarks/bench_dataset.py --clips 12 --seconds 20  # quick look
@@ -22,17 +23,12 @@ from pathlib import Path
 
 import numpy as np
 
-from stage1_pose.audio import beat_f_measure, beat_times
+from dancesynth.core.motion import chance_hit_rate, kinematic_beats, velocity_minimum_beats
+from dancesynth.core.skeleton import normalize
+from stage1_pose.beats import beat_f_measure, beat_times
 from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.data.make_dataset import make_dataset
-from dancesynth.core.motion import kinematic_beats, velocity_minimum_beats
-from dancesynth.core.skeleton import normalize
-
-
-def _hit_rate(found: np.ndarray, beat_frames: np.ndarray) -> float:
-    if len(found) == 0:
-        return float("nan")
-    return float(np.mean(np.abs(found[:, None] - beat_frames[None]).min(axis=1) <= 1))
+from stage1_pose.metrics import beat_hit_rate
 
 
 def _score(job: tuple[str, int]) -> tuple[str, float, float, float, float]:
@@ -46,8 +42,9 @@ def _score(job: tuple[str, int]) -> tuple[str, float, float, float, float]:
     beat_frames = np.round(reference * ds.fps).astype(np.int64)
     kb, vm = kinematic_beats(xy, ds.fps), velocity_minimum_beats(xy, ds.fps)
     rng = np.random.default_rng(index)
-    chance = np.mean([_hit_rate(rng.integers(0, len(poses), len(kb)), beat_frames) for _ in range(20)])
-    return clip.style, f, _hit_rate(kb, beat_frames), _hit_rate(vm, beat_frames), float(chance)
+    chance = chance_hit_rate(kb, beat_frames, len(poses), rng, tolerance_frames=1)
+    return (clip.style, f, beat_hit_rate(kb, beat_frames, tolerance_frames=1),
+            beat_hit_rate(vm, beat_frames, tolerance_frames=1), chance)
 
 
 def main() -> None:

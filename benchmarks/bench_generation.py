@@ -29,11 +29,13 @@ def run_case(seconds: float, precision: str, threads: int) -> None:
     start = time.perf_counter()
     model.prepare_inference(precision)
     prepare = time.perf_counter() - start
-    audio = torch.randn(1, int(seconds * FPS), model.config.feature_dim)
+    features = torch.randn(1, int(seconds * FPS), model.config.feature_dim)
+    beats = torch.zeros(features.shape[:2], dtype=torch.bool)
+    beats[:, ::8] = True  # 112.5 BPM
     start = time.perf_counter()
-    poses = model.generate(audio, torch.Generator().manual_seed(0))
+    poses = model.generate(features, beats, torch.Generator().manual_seed(0))
     took = time.perf_counter() - start
-    assert poses.shape[1] == audio.shape[1]
+    assert poses.shape[1] == features.shape[1]
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(json.dumps({"seconds": took, "prepare": prepare, "peak_mb": peak}))
 

@@ -14,8 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from dancesynth.core import media
-from stage1_pose import audio
 from dancesynth.core.skeleton import JOINT_INDEX, NUM_JOINTS, PoseSequence
+from stage1_pose import beats as beat_tracking
+from stage1_pose import features as music_features
 from stage2_video.synthetic_person import PersonAppearance, render_person
 
 SR = 44100
@@ -42,7 +43,8 @@ def walking(frames: int, size: int) -> PoseSequence:
             "RAnkle": (-.06, .89), "LKnee": (.06, .72), "LAnkle": (.06, .89), "REar": (-.03, .16), "LEar": (.03, .16)}
     for name, (x, y) in base.items():
         swing = 0.05 * np.sin(phase) * (1 if name[0] == "R" else -1) * name.endswith(("Wrist", "Ankle"))
-        kp[:, JOINT_INDEX[name]] = np.stack([(0.5 + x + swing) * size, np.full(frames, y * size), np.full(frames, .9)], 1)
+        kp[:, JOINT_INDEX[name]] = np.stack([(0.5 + x + swing) * size, np.full(frames, y * size),
+                                             np.full(frames, .9)], 1)
     return PoseSequence(kp, 15.0, size, size)
 
 
@@ -72,21 +74,23 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0, help="song / video length in seconds")
     args = parser.parse_args()
     y = song(args.seconds)
-    audio.extract_features(y[:SR * 5], SR, "dance_revolution")  # numba / FFT plan warm-up
+    music_features.extract_features(y[:SR * 5], SR, "dance_revolution")  # numba / FFT plan warm-up
     rows = []
-    for kind in audio.FEATURE_KINDS:
-        feats, dt = timed(lambda: audio.extract_features(y, SR, kind))
+    for kind in music_features.FEATURE_KINDS:
+        feats, dt = timed(lambda: music_features.extract_features(y, SR, kind))
         rows.append((f"extract_features {kind}", f"{args.seconds:g} s song", f"{dt:.2f} s",
                      f"{args.seconds / dt:.0f}x real time", str(feats.shape)))
-    beats, dt = timed(lambda: audio.beat_times(y, SR))
+    beats, dt = timed(lambda: beat_tracking.beat_times(y, SR))
     reference = np.arange(0, args.seconds - 0.2, 0.5)
     rows.append(("beat_times", f"{args.seconds:g} s song", f"{dt:.2f} s",
-                 f"F={audio.beat_f_measure(beats, reference):.3f}", f"{audio.tempo(y, SR):.1f} BPM"))
+                 f"F={beat_tracking.beat_f_measure(beats, reference):.3f}",
+                 f"{beat_tracking.tempo(y, SR):.1f} BPM"))
     frames = int(args.seconds * 15)
     for size in (256, 512):
         seq = walking(frames, size)
         _, dt = timed(lambda: sum(1 for _ in render_person(seq, PersonAppearance())))
-        rows.append(("render_person", f"{frames} frames {size}x{size}", f"{dt:.2f} s", f"{frames / dt:.0f} frames/s", ""))
+        rows.append(("render_person", f"{frames} frames {size}x{size}", f"{dt:.2f} s",
+                     f"{frames / dt:.0f} frames/s", ""))
         with tempfile.TemporaryDirectory() as tmp:
             memory: list[float] = []
             path = Path(tmp) / "out.mp4"
@@ -94,9 +98,12 @@ def main() -> None:
             streams = media.probe_streams(path)
             sync_ms = 1000 * abs(streams["audio_duration"] - streams["video_duration"])
             rows.append(("write_video + AAC", f"{frames} noise frames {size}x{size}", f"{dt:.2f} s",
-                         f"{frames / dt:.0f} frames/s", f"RSS growth after frame 100: {max(memory[1:]) - memory[1]:.0f} MB, A/V diff {sync_ms:.1f} ms"))
+                         f"{frames / dt:.0f} frames/s",
+                         f"RSS growth after frame 100: {max(memory[1:]) - memory[1]:.0f} MB, "
+                         f"A/V diff {sync_ms:.1f} ms"))
             _, dt = timed(lambda: sum(1 for _ in media.read_frames(path)))
-            rows.append(("read_frames", f"{frames} frames {size}x{size}", f"{dt:.2f} s", f"{frames / dt:.0f} frames/s", ""))
+            rows.append(("read_frames", f"{frames} frames {size}x{size}", f"{dt:.2f} s",
+                         f"{frames / dt:.0f} frames/s", ""))
     print("| operation | input | time | rate | notes |\n|---|---|---|---|---|")
     for row in rows:
         print("| " + " | ".join(row) + " |")

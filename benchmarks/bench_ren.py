@@ -14,8 +14,8 @@ import torch
 from dancesynth.core.device import resolve_device
 from stage1_pose.models.base import Batch
 from stage1_pose.models.ren.model import ABLATIONS, RenConfig, RenMethod
-from stage1_pose.models.ren.stgcn import STGCN, STGCNConfig
 from stage1_pose.models.ren.perceptual import PosePerceptualLoss
+from stage1_pose.models.ren.stgcn import STGCN, STGCNConfig
 
 FPS = 15
 
@@ -43,8 +43,8 @@ def main() -> None:
             method.perceptual = PosePerceptualLoss(stgcn.to(device), cfg.perceptual_layer_weights)
         method._optimizers = method.configure_optimizers()
         b, t = cfg.batch_size, cfg.window_frames
-        batch = Batch(torch.randn(b, t, cfg.samples_per_frame), torch.randn(b, t, 25, 2),
-                      torch.zeros(b, dtype=torch.long)).to(device)
+        batch = Batch(torch.randn(b, t, cfg.samples_per_frame), torch.zeros(b, t, dtype=torch.bool),
+                      torch.randn(b, t, 25, 2), torch.zeros(b, dtype=torch.long)).to(device)
         method.training_step(batch, 0)
         _sync(device)
         start = time.perf_counter()
@@ -55,7 +55,8 @@ def main() -> None:
         method.eval()
         song = torch.randn(1, 60 * FPS, cfg.samples_per_frame, device=device)
         start = time.perf_counter()
-        method.generate(song, torch.Generator(device=device).manual_seed(0))
+        method.generate(song, torch.zeros(song.shape[:2], dtype=torch.bool, device=device),
+                        torch.Generator(device=device).manual_seed(0))
         _sync(device)
         gen = time.perf_counter() - start
         params = sum(p.numel() for p in method.parameters()) / 1e6

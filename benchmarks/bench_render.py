@@ -25,9 +25,9 @@ import torch
 
 from dancesynth.core.skeleton import PoseSequence
 from stage2_video.data import to_image
-from stage2_video.render import AppearanceModel, optimize_generator, render_frames
-from stage2_video.models.pix2pixhd import Pix2PixHD, preset
 from stage2_video.framing import label_maps, whole_canvas
+from stage2_video.models.pix2pixhd import Pix2PixHD, preset
+from stage2_video.render import AppearanceModel, optimize_generator, render_frames
 
 
 def dancing_poses(frames: int, size: int) -> PoseSequence:

@@ -20,17 +20,18 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tqdm import tqdm
 
 from dancesynth.core.checkpoint import load_meta
+from dancesynth.core.config import config_from_dict
 from dancesynth.core.media import VideoWriter
+from dancesynth.core.progress import track
 from dancesynth.core.skeleton import JOINT_INDEX, PoseSequence
 from stage2_video.data import POSES_FILE, frames_file, split_ranges
 from stage2_video.extract import extract_frames
-from stage2_video.render import load_appearance_model, render_frames
+from stage2_video.framing import Framing
 from stage2_video.models.pix2pixhd import Pix2PixHDConfig
 from stage2_video.quality import pck, psnr, ssim
-from stage2_video.framing import Framing
+from stage2_video.render import load_appearance_model, render_frames
 from stage2_video.train import KIND
 
 
@@ -65,14 +66,14 @@ def main() -> None:
     if args.threads:
         torch.set_num_threads(args.threads)
     meta = load_meta(args.run_dir, KIND)
-    config = Pix2PixHDConfig.from_dict(meta["config"])
+    config = config_from_dict(Pix2PixHDConfig, meta["config"])
     model = load_appearance_model(args.run_dir, args.device)
     poses = PoseSequence.load(args.run_dir / POSES_FILE)
     real = np.load(args.run_dir / frames_file(model.framing), mmap_mode="r")
     _, held_out = split_ranges(len(poses), config.val_fraction)
     stop = held_out.start + args.frames if args.frames else held_out.stop
     commanded = poses.slice_frames(held_out.start, min(stop, held_out.stop))
-    generated = list(tqdm(render_frames(model, commanded, normalize=False), total=len(commanded), desc="render"))
+    generated = list(track(render_frames(model, commanded, normalize=False), total=len(commanded), desc="render"))
     reals = [np.asarray(real[t]) for t in range(held_out.start, held_out.start + len(commanded))]
     s = [ssim(g, r) for g, r in zip(generated, reals)]
     p = [psnr(g, r) for g, r in zip(generated, reals)]

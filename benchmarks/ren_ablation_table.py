@@ -15,19 +15,15 @@ import argparse
 
 import numpy as np
 
+from dancesynth.core.motion import dance_distance, joint_speeds, mean_speed
+from dancesynth.core.skeleton import normalize
 from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.generate import generate_from_features, load_pose_model
-from dancesynth.core.skeleton import normalize
-
-
-def _speed(xy: np.ndarray, fps: float) -> np.ndarray:
-    """``[T, 25, 2]`` -> ``[T-1]`` mean joint speed per frame, in units per second."""
-    return np.linalg.norm(np.diff(xy, axis=0), axis=-1).mean(axis=1) * fps
 
 
 def _jerk(xy: np.ndarray, fps: float) -> float:
     accel = np.linalg.norm(np.diff(xy, n=2, axis=0), axis=-1).mean() * fps * fps
-    return float(accel / max(_speed(xy, fps).mean(), 1e-9))
+    return float(accel / max(mean_speed(xy, fps), 1e-9))
 
 
 def _frozen(speed: np.ndarray, fps: float, threshold: float) -> float:
@@ -46,7 +42,7 @@ def main() -> None:
     fps = data.fps
     # Everything in the model units of the real dance (its own body scale), so runs compare directly.
     real = {c.id: normalize(data.load_poses(c)) for c in clips}
-    real_speed = float(np.mean([_speed(r[0], fps).mean() for r in real.values()]))
+    real_speed = float(np.mean([mean_speed(r[0], fps) for r in real.values()]))
     real_jerk = float(np.mean([_jerk(r[0], fps) for r in real.values()]))
     print(f"{len(clips)} {args.split} clips of {args.data}")
     print(f"{'run':<28}{'l1':>8}{'speed':>8}{'jerk':>8}{'frozen':>8}{'seed_d':>8}")
@@ -56,12 +52,13 @@ def main() -> None:
         rows = []
         for clip in clips:
             feats = np.asarray(data.load_features(clip, model.feature_kind))
+            beats = data.load_beats(clip)["beats"]
             target, params = real[clip.id]
-            a, b = (normalize(generate_from_features(model, feats, seed), params.scale)[0] for seed in (0, 1))
+            a, b = (normalize(generate_from_features(model, feats, beats, seed), params.scale)[0] for seed in (0, 1))
             n = min(len(a), len(target))
-            speed = _speed(a, fps)
+            speed = joint_speeds(a, fps).mean(axis=1)
             rows.append((np.abs(a[:n] - target[:n]).mean(), speed.mean(), _jerk(a, fps),
-                         _frozen(speed, fps, 0.1 * real_speed), np.linalg.norm(a - b, axis=-1).mean()))
+                         _frozen(speed, fps, 0.1 * real_speed), dance_distance(a, b).joints))
         l1, speed, jerk, frozen, seed_d = np.mean(rows, axis=0)
         print(f"{run[-28:]:<28}{l1:>8.3f}{speed:>8.3f}{jerk:>8.2f}{frozen:>8.2f}{seed_d:>8.3f}")
 

@@ -21,15 +21,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
-from stage1_pose import metrics
-from stage1_pose.audio import num_pose_frames
-from stage1_pose.data.dataset import DanceDataset
+from dancesynth.core.checkpoint import load_meta
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
 from dancesynth.core.motion import kinematic_beats, velocity_minimum_beats
+from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence, resample
+from stage1_pose import metrics
+from stage1_pose.data.dataset import DanceDataset
+from stage1_pose.features import num_pose_frames
 from stage1_pose.style_classifier import LoadedStyleClassifier
 
 MUSIC_FEATURE_KIND = "dancing2music"
@@ -37,7 +38,7 @@ REAL, RANDOM_REAL, FROZEN = "real dances", "random real dance", "mean pose (froz
 
 
 @dataclass
-class Song:
+class HeldOutSong:
     """A held-out song cut to the evaluated length, with its real dance and beats.
 
     ``samples`` mono ``[N]`` at ``sr`` Hz; ``beats`` in seconds (only those inside the cut); ``real`` the
@@ -128,7 +129,7 @@ def fit_length(seq: PoseSequence, frames: int) -> PoseSequence:
     return seq.replace(seq.keypoints[np.arange(frames) % len(seq)].copy())
 
 
-def load_songs(ds: DanceDataset, seconds: float, split: str = "test") -> list[Song]:
+def load_songs(ds: DanceDataset, seconds: float, split: str = "test") -> list[HeldOutSong]:
     """The songs of ``split`` cut to at most ``seconds`` seconds, with their dances, beats and music embeddings."""
     songs = []
     for clip in ds.clips(split):
@@ -137,8 +138,9 @@ def load_songs(ds: DanceDataset, seconds: float, split: str = "test") -> list[So
         frames = min(num_pose_frames(len(samples), ds.sample_rate, real.fps), len(real))
         beats = ds.load_beats(clip)["beats"]
         music = np.asarray(ds.load_features(clip, MUSIC_FEATURE_KIND)[:frames])
-        songs.append(Song(clip.id, ds.style_index(clip), samples, ds.sample_rate, beats[beats < frames / real.fps],
-                          real.slice_frames(0, frames), music_embedding(music)))
+        songs.append(HeldOutSong(clip.id, ds.style_index(clip), samples, ds.sample_rate,
+                                 beats[beats < frames / real.fps], real.slice_frames(0, frames),
+                                 music_embedding(music)))
     if not songs:
         raise DancesynthError(f"The dataset {ds.root} has no {split} clips to evaluate on; "
                               "re-create it with more `--clips`.")
@@ -148,7 +150,7 @@ def load_songs(ds: DanceDataset, seconds: float, split: str = "test") -> list[So
 def load_reference(ds: DanceDataset, clf: LoadedStyleClassifier) -> Reference:
     """Embed every training dance (whole dance and consecutive windows) and summarise its music."""
     dances, feats, windows, music = [], [], [], []
-    for clip in tqdm(ds.clips("train"), desc="reference dances", unit="clip"):
+    for clip in track(ds.clips("train"), desc="reference dances", unit="clip"):
         dance = ds.load_poses(clip)
         _, f, w = clf.embed(dance)
         dances.append(dance)
@@ -161,7 +163,7 @@ def load_reference(ds: DanceDataset, clf: LoadedStyleClassifier) -> Reference:
     return Reference(dances, np.stack(feats), np.concatenate(windows), np.stack(music))
 
 
-def baseline_contenders(songs: list[Song], ref: Reference) -> list[Contender]:
+def baseline_contenders(songs: list[HeldOutSong], ref: Reference) -> list[Contender]:
     """The real, random-real (mismatched music) and frozen mean-pose rows."""
     frames = [len(s.real) for s in songs]
     mean_pose = np.mean([d.keypoints.mean(axis=0) for d in ref.dances], axis=0)
@@ -178,12 +180,12 @@ def baseline_contenders(songs: list[Song], ref: Reference) -> list[Contender]:
             Contender(RANDOM_REAL, random_real), Contender(FROZEN, frozen, stochastic=False)]
 
 
-def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[Song], device: str) -> Contender:
+def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[HeldOutSong], device: str) -> Contender:
     """A row generating with the stage-1 model saved in ``run_dir``.
 
     When the model runs at the dataset's frame rate, its input features come from the dataset's feature cache
-    (computed once per song, cut to the song's frames) instead of being extracted again for every seed, and
-    methods that follow beats get the dataset's beats of the song.
+    (computed once per song, cut to the song's frames) instead of being extracted again for every seed, with
+    the dataset's beats of the song; otherwise features and beats come from the song's samples.
     """
     from stage1_pose.generate import generate_dance, generate_from_features, load_pose_model
 
@@ -195,7 +197,7 @@ def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[So
         song = songs[i]
         if cached:
             features = np.asarray(ds.load_features(clips[song.id], model.feature_kind)[: len(song.real)])
-            dance = generate_from_features(model, features, seed=seed, beat_frames=song.beats * model.fps)
+            dance = generate_from_features(model, features, song.beats, seed=seed)
         else:
             # Beat and window metrics count frames, so every row is judged at the dataset's frame rate.
             dance = resample(generate_dance(model, song.samples, song.sr, seed=seed), song.real.fps)
@@ -211,7 +213,7 @@ def score_dance(dance: PoseSequence, clf: LoadedStyleClassifier) -> DanceScores:
                        np.asarray(velocity_minimum_beats(dance.xy, dance.fps)))
 
 
-def trial_metrics(scores: list[DanceScores], songs: list[Song], ref: Reference, fps: float,
+def trial_metrics(scores: list[DanceScores], songs: list[HeldOutSong], ref: Reference, fps: float,
                   tolerance_frames: float) -> dict[str, float]:
     """Every per-trial metric of one row (one dance per song)."""
     music_frames = [s.beats * fps for s in songs]
@@ -235,14 +237,14 @@ def trial_metrics(scores: list[DanceScores], songs: list[Song], ref: Reference, 
     return out
 
 
-def evaluate_contender(contender: Contender, songs: list[Song], ref: Reference, clf: LoadedStyleClassifier,
+def evaluate_contender(contender: Contender, songs: list[HeldOutSong], ref: Reference, clf: LoadedStyleClassifier,
                        trials: int, tolerance_frames: float,
                        on_dance: Callable[[str, int, int, PoseSequence], None] | None = None) -> RowResult:
     """All metrics of one row over ``trials`` seeds. ``on_dance(row, song_index, seed, dance)`` sees every dance."""
     result = RowResult(contender.name)
     n_trials = trials if contender.stochastic else 1
     all_scores: list[list[DanceScores]] = []
-    bar = tqdm(total=n_trials * len(songs), desc=contender.name, unit="dance")
+    bar = track(total=n_trials * len(songs), desc=contender.name, unit="dance")
     for seed in range(n_trials):
         scores = []
         for i in range(len(songs)):
@@ -309,8 +311,9 @@ def write_report(out_dir: Path, rows: list[RowResult], info: dict) -> None:
     settings = "\n".join(f"- {k}: {v}" for k, v in info.items())
     text = (f"# Stage-1 evaluation\n\n{settings}\n\n{markdown_table(rows)}\n\n"
             "Mean ± std over trials (seeds; deterministic rows are evaluated once). ↓ = lower is better; for the "
-            "other columns the real dances are the target, not the maximum. D2M = Dancing2Music kinematic-offset beats, vel-min = local minima of "
-            "smoothed joint speed (Bailando); a kinematic beat hits when a music beat is within "
+            "other columns the real dances are the target, not the maximum. D2M = Dancing2Music kinematic-offset "
+            "beats, vel-min = local minima of smoothed joint speed (Bailando); a kinematic beat hits when a music "
+            "beat is within "
             f"±{info['tolerance_frames']} frames. BAS σ = {metrics.DEFAULT_BAS_SIGMA_SECONDS} s. "
             "Multimodality is over seeds for the same song (– where undefined).\n\n"
             "![FID over time](fid_over_time.png)\n\n![Beat alignment](beat_alignment.png)\n")
@@ -336,8 +339,7 @@ def obtain_classifier(ds: DanceDataset, options: EvaluationOptions) -> tuple[Loa
     """The classifier given by ``options.classifier``, else the one cached in ``DATA/style_classifier/PRESET``
     (trained there first when missing or trained on other clips). Returns it and the folder it lives in."""
     from dancesynth.core.device import resolve_device
-    from stage1_pose.style_classifier import (PRESETS, load_style_classifier, save_style_classifier,
-                                              train_on_dataset)
+    from stage1_pose.style_classifier import PRESETS, load_style_classifier, save_style_classifier, train_on_dataset
 
     device = resolve_device(options.device)
     if options.classifier is not None:
@@ -352,10 +354,10 @@ def obtain_classifier(ds: DanceDataset, options: EvaluationOptions) -> tuple[Loa
     return clf, str(run_dir)
 
 
-def _beat_figure(songs: list[Song], dances: dict[str, PoseSequence], out_dir: Path, seconds: float) -> None:
-    from stage1_pose.audio import onset_strength
+def _beat_figure(songs: list[HeldOutSong], dances: dict[str, PoseSequence], out_dir: Path, seconds: float) -> None:
     from dancesynth.core.motion import kinematic_offsets
     from dancesynth.core.plots import plot_beat_alignment
+    from stage1_pose.beats import onset_strength
 
     song = songs[0]
     fps = song.real.fps
@@ -382,6 +384,8 @@ def run_evaluation(data_dir: str | os.PathLike, model_dirs: list[str], out_dir: 
     if options.trials < 1 or options.seconds <= 0:
         raise DancesynthError("--trials must be at least 1 and --seconds positive.")
     ds = DanceDataset(data_dir)
+    for run_dir in model_dirs:  # a wrong folder fails now, not after the classifier is trained
+        load_meta(run_dir, "stage1")
     out_dir = Path(out_dir)
     try:
         (out_dir / "videos").mkdir(parents=True, exist_ok=True)
@@ -413,7 +417,7 @@ def run_evaluation(data_dir: str | os.PathLike, model_dirs: list[str], out_dir: 
     _beat_figure(songs, samples, out_dir, options.plot_seconds)
     song = songs[0]
     n_video = int(round(options.video_seconds * fps))
-    for name, dance in tqdm(samples.items(), desc="sample videos", unit="video"):
+    for name, dance in track(samples.items(), desc="sample videos", unit="video"):
         clip = dance.slice_frames(0, n_video)
         audio = song.samples[: int(round(len(clip) / fps * song.sr))]
         write_skeleton_video(clip, out_dir / "videos" / f"{_file_name(name)}.mp4", audio=audio, audio_sr=song.sr,

@@ -13,8 +13,8 @@ import warnings
 import numpy as np
 import scipy.linalg
 
-# A kinematic beat within this many pose frames of a music beat is "aligned": +-2 frames = +-133 ms at 15 fps.
-DEFAULT_TOLERANCE_FRAMES = 2
+from dancesynth.core.motion import DEFAULT_TOLERANCE_FRAMES, beats_aligned
+
 # Bailando's Beat Align Score uses sigma = 3 frames at 60 fps, i.e. 50 ms.
 DEFAULT_BAS_SIGMA_SECONDS = 0.05
 
@@ -68,15 +68,6 @@ def style_accuracy(predicted: np.ndarray, target: np.ndarray) -> float:
     return float((predicted == target).mean())
 
 
-def _aligned(kinematic_frames: np.ndarray, music_frames: np.ndarray, tolerance_frames: float) -> np.ndarray:
-    """Boolean per kinematic beat: is some music beat within ``tolerance_frames``?"""
-    k = np.asarray(kinematic_frames, dtype=np.float64).ravel()
-    m = np.asarray(music_frames, dtype=np.float64).ravel()
-    if k.size == 0 or m.size == 0:
-        return np.zeros(k.size, bool)
-    return np.abs(k[:, None] - m[None, :]).min(axis=1) <= tolerance_frames
-
-
 def beat_coverage(kinematic_frames: np.ndarray, music_frames: np.ndarray) -> float:
     """Beat coverage ``B_k / B_m`` (Lee et al. 2019): kinematic beats per music beat.
 
@@ -94,7 +85,7 @@ def beat_hit_rate(kinematic_frames: np.ndarray, music_frames: np.ndarray,
     A kinematic beat (frame index) is aligned when a music beat (frame index, may be fractional: seconds x fps)
     lies within ``tolerance_frames`` of it. NaN when there is no kinematic beat.
     """
-    aligned = _aligned(kinematic_frames, music_frames, tolerance_frames)
+    aligned = beats_aligned(kinematic_frames, music_frames, tolerance_frames)
     return float(aligned.mean()) if aligned.size else float("nan")
 
 

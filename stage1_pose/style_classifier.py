@@ -14,16 +14,18 @@ from __future__ import annotations
 import contextlib
 import os
 from collections.abc import Iterator
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 import torch
 from torch import nn
-from tqdm import tqdm
 
 from dancesynth.core.checkpoint import load_checkpoint, save_checkpoint
+from dancesynth.core.config import config_from_dict, config_to_dict
 from dancesynth.core.errors import DancesynthError
+from dancesynth.core.progress import track
+from dancesynth.core.runs import RunFolder
 from dancesynth.core.skeleton import NUM_JOINTS, PoseSequence, normalize
 
 KIND = "style_classifier"
@@ -134,10 +136,14 @@ class LoadedStyleClassifier:
 
 def train_style_classifier(dances: list[PoseSequence], labels: list[int], styles: list[str],
                            config: StyleClassifierConfig, device: torch.device, seed: int = 0,
-                           progress: bool = True) -> LoadedStyleClassifier:
+                           progress: bool = True, run: RunFolder | None = None,
+                           checkpoint_every: int = 50) -> LoadedStyleClassifier:
     """Train on random ``window_frames`` crops of labelled dances (label = index into ``styles``).
 
     Cross-entropy, Adam; inputs standardised per dimension with statistics of all training frames.
+    With a run folder ``run`` (kind ``style_classifier``) a checkpoint is written every ``checkpoint_every``
+    steps and at the end, each with a ``metrics.csv`` row (mean loss since the previous one); a run opened
+    for resume continues exactly from its last checkpoint (``config.steps`` is the total).
     """
     if len(dances) != len(labels) or not dances:
         raise DancesynthError("The style classifier needs at least one labelled dance; "
@@ -154,20 +160,31 @@ def train_style_classifier(dances: list[PoseSequence], labels: list[int], styles
     torch.manual_seed(seed)
     model = StyleClassifier(config, len(styles)).to(device)
     opt = torch.optim.Adam(model.parameters(), lr=config.lr)
+    clf = LoadedStyleClassifier(model, list(styles), mean, std, device)
+    start = 0
+    if run is not None and run.resumed:
+        meta, extra = run.restore(model, {"adam": opt})
+        start = meta["step"]
+        rng.bit_generator.state = extra["crops"]
     y_all = np.asarray(labels, dtype=np.int64)
     model.train()
     with _one_cpu_thread(device):
-        _fit(model, opt, feats, usable, y_all, mean, std, config, device, rng, progress)
-    return LoadedStyleClassifier(model, list(styles), mean, std, device)
+        _fit(clf, opt, feats, usable, y_all, config, rng, start, progress, run, checkpoint_every, seed)
+    if run is not None:
+        run.plot("loss.png")
+        run.close()
+    return clf
 
 
-def _fit(model: StyleClassifier, opt: torch.optim.Optimizer, feats: list[np.ndarray], usable: list[int],
-         y_all: np.ndarray, mean: np.ndarray, std: np.ndarray, config: StyleClassifierConfig,
-         device: torch.device, rng: np.random.Generator, progress: bool) -> None:
-    """The optimisation loop of :func:`train_style_classifier` on random window crops."""
+def _fit(clf: LoadedStyleClassifier, opt: torch.optim.Optimizer, feats: list[np.ndarray], usable: list[int],
+         y_all: np.ndarray, config: StyleClassifierConfig, rng: np.random.Generator, start: int, progress: bool,
+         run: RunFolder | None, checkpoint_every: int, seed: int) -> None:
+    """The optimisation loop of :func:`train_style_classifier` on random window crops, from step ``start``."""
     w = config.window_frames
-    bar = tqdm(range(config.steps), desc="style classifier", disable=not progress)
-    for _ in bar:
+    model, mean, std, device = clf.model, clf.mean, clf.std, clf.device
+    total, count = 0.0, 0
+    bar = track(range(start, config.steps), desc="style classifier", disable=not progress)
+    for step in bar:
         clip = rng.choice(usable, size=config.batch_size)
         x = np.stack([feats[c][s: s + w] for c, s in
                       ((c, rng.integers(0, len(feats[c]) - w + 1)) for c in clip)])
@@ -179,20 +196,32 @@ def _fit(model: StyleClassifier, opt: torch.optim.Optimizer, feats: list[np.ndar
         loss.backward()
         opt.step()
         bar.set_postfix(loss=f"{loss.item():.3f}")
+        total, count = total + loss.item(), count + 1
+        done = step + 1
+        if run is not None and (done % checkpoint_every == 0 or done == config.steps):
+            run.log("metrics", {"step": done, "loss": total / count})
+            run.save(model, {**_meta(clf), "step": done, "seed": seed}, {"adam": opt},
+                     {"crops": rng.bit_generator.state})
+            total, count = 0.0, 0
+
+
+def _meta(clf: LoadedStyleClassifier) -> dict[str, Any]:
+    """What loading needs besides the weights: config, style names and input statistics."""
+    return {"kind": KIND, "config": config_to_dict(clf.model.config), "styles": clf.styles,
+            "input_mean": clf.mean.tolist(), "input_std": clf.std.tolist()}
 
 
 def save_style_classifier(run_dir: str | os.PathLike, clf: LoadedStyleClassifier,
                           extra: dict[str, Any] | None = None) -> None:
-    """Save as a checkpoint of kind ``style_classifier`` (weights + config, styles and input statistics in JSON)."""
-    meta = {"kind": KIND, "config": asdict(clf.model.config), "styles": clf.styles,
-            "input_mean": clf.mean.tolist(), "input_std": clf.std.tolist(), **(extra or {})}
-    save_checkpoint(run_dir, clf.model, meta)
+    """Save as a checkpoint of kind ``style_classifier`` (weights + config, styles and input statistics in JSON)
+    without training state (e.g. the classifier ``dancesynth evaluate`` caches in the dataset)."""
+    save_checkpoint(run_dir, clf.model, {**_meta(clf), **(extra or {})})
 
 
 def load_style_classifier(run_dir: str | os.PathLike, device: torch.device) -> LoadedStyleClassifier:
     """Inverse of :func:`save_style_classifier`."""
     state, meta = load_checkpoint(run_dir, KIND)
-    model = StyleClassifier(StyleClassifierConfig(**meta["config"]), len(meta["styles"]))
+    model = StyleClassifier(config_from_dict(StyleClassifierConfig, meta["config"]), len(meta["styles"]))
     model.load_state_dict(state)
     return LoadedStyleClassifier(model.to(device), list(meta["styles"]), np.asarray(meta["input_mean"]),
                                  np.asarray(meta["input_std"]), device)
@@ -204,18 +233,22 @@ def classifier_accuracy(clf: LoadedStyleClassifier, dances: list[PoseSequence], 
 
 
 def train_on_dataset(data_dir: str | os.PathLike, config: StyleClassifierConfig, device: torch.device,
-                     seed: int = 0, progress: bool = True) -> tuple[LoadedStyleClassifier, float]:
+                     seed: int = 0, progress: bool = True,
+                     run: RunFolder | None = None) -> tuple[LoadedStyleClassifier, float]:
     """Train on the dance of every train-split clip of a dataset folder, labelled with the clip's style.
 
     Returns the classifier and its accuracy on the real dances of the test split (NaN when it has none),
-    which is the ceiling the ACC of generated dances can be read against.
+    which is the ceiling the ACC of generated dances can be read against. With ``run`` (see
+    :func:`train_style_classifier`) the final checkpoint's metadata also holds that accuracy and the dataset.
     """
     from stage1_pose.data.dataset import DanceDataset
 
     ds = DanceDataset(data_dir)
     train, test = ds.clips("train"), ds.clips("test")
     clf = train_style_classifier([ds.load_poses(c) for c in train], [ds.style_index(c) for c in train],
-                                 list(ds.styles), config, device, seed, progress)
-    if not test:
-        return clf, float("nan")
-    return clf, classifier_accuracy(clf, [ds.load_poses(c) for c in test], [ds.style_index(c) for c in test])
+                                 list(ds.styles), config, device, seed, progress, run)
+    accuracy = (classifier_accuracy(clf, [ds.load_poses(c) for c in test], [ds.style_index(c) for c in test])
+                if test else float("nan"))
+    if run is not None:
+        run.update_meta({"test_accuracy": accuracy, "data": str(data_dir)})
+    return clf, accuracy

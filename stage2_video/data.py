@@ -2,26 +2,36 @@
 
 The frames are framed (crop + resize + pad, see :mod:`stage2_video.framing`) once and cached in the run folder
 as a uint8 ``.npy`` memory map, so memory stays flat for long videos and resuming skips the decoding. Poses
-are cached as ``poses.npz``. The split is by time: the last ``val_fraction`` of the video is held out.
+are cached as ``poses.npz``. Each cache has a ``<name>.key`` file, written after the cache is complete, naming
+what it was made from (the video's SHA-256 and the options that shape it), so a cache left by an interrupted
+run or made from another video is rebuilt instead of used. The split is by time: the last ``val_fraction`` of
+the video is held out.
 """
 
 from __future__ import annotations
 
+import contextlib
+import functools
+import hashlib
+import json
+import os
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import torch
 from torch.utils.data import Dataset
-from tqdm import tqdm
 
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
 from dancesynth.core.media import probe_video, read_frames
+from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence
 from stage2_video.framing import Framing, label_map
 
 POSES_FILE = "poses.npz"
+KEY_SUFFIX = ".key"
 
 
 def frames_file(framing: Framing) -> str:
@@ -39,18 +49,61 @@ def to_image(tensor: torch.Tensor) -> np.ndarray:
     return x.permute(1, 2, 0).cpu().numpy()
 
 
+@functools.lru_cache(maxsize=8)
+def _sha256(path: str, size: int, mtime_ns: int) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def video_digest(video: Path) -> str:
+    """SHA-256 (hex) of the video file's bytes; remembered while the file's size and modification time stay."""
+    try:
+        info = os.stat(video)
+        return _sha256(str(Path(video).resolve()), info.st_size, info.st_mtime_ns)
+    except OSError as e:
+        raise DancesynthError(f"Could not read the target video {video} ({e.strerror or e}); check the path.") from e
+
+
+def _cache_key(video: Path, **options) -> str:
+    return json.dumps({"video_sha256": video_digest(video), **options}, sort_keys=True, default=str)
+
+
+def _key_file(cache: Path) -> Path:
+    return cache.with_name(cache.name + KEY_SUFFIX)
+
+
+def _is_cached(cache: Path, key: str) -> bool:
+    """Whether ``cache`` is complete and was made from what ``key`` names."""
+    marker = _key_file(cache)
+    return cache.is_file() and marker.is_file() and marker.read_text() == key
+
+
+@contextlib.contextmanager
+def _rebuilding(cache: Path, key: str) -> Iterator[None]:
+    """Around rewriting ``cache``: its key file goes first and is written again only once the cache is complete."""
+    _key_file(cache).unlink(missing_ok=True)
+    yield
+    with atomic_path(_key_file(cache)) as tmp:
+        tmp.write_text(key)
+
+
 def load_or_extract_poses(video: Path, run_dir: Path, poses: Path | None) -> PoseSequence:
-    """The target's poses: ``poses`` when given (e.g. ground truth of a synthetic video), else the run's cache,
-    else extracted from the video (then cached as ``RUN_DIR/poses.npz``)."""
+    """The target's poses: ``poses`` when given (e.g. ground truth of a synthetic video), else the run's cache
+    when it was made for this video, else extracted from the video (then cached as ``RUN_DIR/poses.npz``)."""
     cache = run_dir / POSES_FILE
+    key = _cache_key(video)
     if poses is not None:
         seq = PoseSequence.load(poses)
-    elif cache.is_file():
+    elif _is_cached(cache, key):
         return PoseSequence.load(cache)
     else:
         from stage2_video.extract import extract_poses  # mediapipe is heavy; import only when extracting
         seq = extract_poses(video).poses
-    seq.save(cache)
+    with _rebuilding(cache, key):
+        seq.save(cache)
     return seq
 
 
@@ -65,17 +118,17 @@ def check_poses_match(seq: PoseSequence, video: Path) -> PoseSequence:
 
 
 def cache_frames(video: Path, framing: Framing, run_dir: Path, num_frames: int) -> np.ndarray:
-    """Framed uint8 frames ``[T, H, W, 3]`` (memory-mapped), decoded once and cached in ``run_dir``."""
+    """Framed uint8 frames ``[T, H, W, 3]`` (memory-mapped), decoded once and cached in ``run_dir``; a cache
+    made from another video, framing or frame count is rebuilt."""
     path = run_dir / frames_file(framing)
-    if path.is_file():
-        frames = np.load(path, mmap_mode="r")
-        if frames.shape[0] == num_frames:
-            return frames
+    key = _cache_key(video, framing=framing.to_dict(), frames=num_frames)
+    if _is_cached(path, key):
+        return np.load(path, mmap_mode="r")
     count = 0
-    with atomic_path(path) as tmp:
+    with _rebuilding(path, key), atomic_path(path) as tmp:
         out = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.uint8,
                                         shape=(num_frames, framing.out_height, framing.out_width, 3))
-        for frame in tqdm(read_frames(video), total=num_frames, desc="frames", unit="frame"):
+        for frame in track(read_frames(video), total=num_frames, desc="frames", unit="frame"):
             if count == num_frames:
                 break
             out[count] = framing.image(frame)

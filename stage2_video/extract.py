@@ -19,11 +19,11 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from tqdm import tqdm
 
 from dancesynth.core.draw import draw_pose
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import VideoWriter, probe_video, read_frames
+from dancesynth.core.progress import track
 from dancesynth.core.skeleton import JOINT_INDEX, NECK, NUM_JOINTS, ROOT, PoseSequence, interpolate_missing
 from stage2_video.smoothing import SmoothingConfig, smooth
 from stage2_video.tracking import Box, PersonTracker, TrackerConfig, TrackStats
@@ -196,7 +196,7 @@ def extract_frames(frames: Iterable[np.ndarray], fps: float, size: tuple[int, in
     raw, found = [], []
     with BlazePose(config.min_visibility, config.crop_size) as estimator:
         tracker = PersonTracker(estimator, size[0], size[1], config.tracker)
-        for frame in tqdm(frames, total=total, desc="extracting poses", unit="frame", disable=not progress):
+        for frame in track(frames, total=total, desc="extracting poses", unit="frame", disable=not progress):
             pose = tracker.step(frame)
             found.append(pose is not None)
             raw.append(np.zeros((NUM_JOINTS, 3), np.float32) if pose is None else pose)
@@ -214,7 +214,7 @@ def write_preview(video: str | os.PathLike, poses: PoseSequence, out: str | os.P
                   progress: bool = True) -> None:
     """Write ``out`` (mp4): the frames of ``video`` with ``poses`` drawn over them (OpenPose colours)."""
     with VideoWriter(out, poses.fps, poses.width, poses.height) as writer:  # atomic: temp name, then rename
-        frames = tqdm(read_frames(video), total=len(poses), desc="writing preview", unit="frame",
+        frames = track(read_frames(video), total=len(poses), desc="writing preview", unit="frame",
                       disable=not progress)
         for frame, keypoints in zip(frames, poses.keypoints):
             writer.write(draw_pose(frame, keypoints))

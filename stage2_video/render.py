@@ -18,17 +18,18 @@ from pathlib import Path
 import numpy as np
 import torch
 from torch import nn
-from tqdm import tqdm
 
 from dancesynth.core.checkpoint import load_checkpoint
+from dancesynth.core.config import config_from_dict
 from dancesynth.core.device import resolve_device
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import VideoWriter
+from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence
 from stage2_video.data import to_image, to_tensor
+from stage2_video.framing import Framing, label_map
 from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig
 from stage2_video.normalize import BodyStats, fit_normalization
-from stage2_video.framing import Framing, label_map
 from stage2_video.train import KIND
 from stage2_video.winograd import winograd_generator
 
@@ -120,7 +121,7 @@ def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", opti
     """Load ``RUN_DIR/latest`` (kind "stage2"); ``optimize`` compiles the generator for fast rendering."""
     state_dict, meta = load_checkpoint(Path(run_dir), KIND)
     dev = resolve_device(device)
-    config = Pix2PixHDConfig.from_dict(meta["config"])
+    config = config_from_dict(Pix2PixHDConfig, meta["config"])
     model = Pix2PixHD(config)
     model.load_state_dict(state_dict)
     generator = model.generator.eval().to(dev)
@@ -158,7 +159,7 @@ def render_video(poses: PoseSequence, model: AppearanceModel | str | os.PathLike
     if not isinstance(model, AppearanceModel):
         model = load_appearance_model(model, device)
     out_path = Path(out_path)
-    frames = tqdm(render_frames(model, poses, normalize), total=len(poses), desc="rendering", unit="frame",
+    frames = track(render_frames(model, poses, normalize), total=len(poses), desc="rendering", unit="frame",
                   disable=not progress)
     with VideoWriter(out_path, poses.fps, model.config.width, model.config.height, audio=audio,
                      audio_sr=audio_sr) as writer:

@@ -1,7 +1,7 @@
 """Training the appearance model (pix2pixHD + Everybody Dance Now temporal smoothing) on one target video.
 
-Run folder layout (``RUN_DIR``):
-  latest.safetensors / latest.json / latest.training.pt   checkpoint (kind "stage2"), resumable exactly
+Run folder layout (``RUN_DIR``, a :class:`dancesynth.core.runs.RunFolder`):
+  latest.json + ckpt-<step>-<id>/                         checkpoint (kind "stage2"), resumable exactly
   poses.npz                                               the target's poses (extracted once, or given)
   frames_<W>x<H>.npy                                      framed training frames (uint8 memory map)
   losses.csv, validation.csv, losses.png                  per-step losses, held-out SSIM/PSNR, their plot
@@ -14,7 +14,6 @@ WORLD_SIZE > 1 each rank takes its DistributedSampler share, gradients are avera
 
 from __future__ import annotations
 
-import csv
 import math
 import os
 import time
@@ -24,28 +23,32 @@ from pathlib import Path
 import cv2
 import numpy as np
 import torch
-import torch.distributed as dist
 import torch.nn.functional as F
 from torch.utils.data import DistributedSampler
-from tqdm import tqdm
 
-from dancesynth.core.checkpoint import (
-    capture_rng_state, load_checkpoint, load_meta, load_training_state, restore_rng_state, save_checkpoint)
+from dancesynth.core.config import config_from_dict, config_to_dict
 from dancesynth.core.device import resolve_device
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
+from dancesynth.core.progress import track
+from dancesynth.core.runs import RunFolder
 from stage2_video.data import (
-    FramePairs, TargetVideo, cache_frames, check_poses_match, load_or_extract_poses, split_ranges, to_image)
+    FramePairs,
+    TargetVideo,
+    cache_frames,
+    check_poses_match,
+    load_or_extract_poses,
+    split_ranges,
+    to_image,
+)
+from stage2_video.framing import Framing, person_framing
 from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig, feature_matching_loss, lsgan_loss, preset
 from stage2_video.normalize import body_stats
 from stage2_video.quality import psnr, ssim
-from stage2_video.framing import Framing, person_framing
 from stage2_video.vgg import VGGLoss, build_vgg_loss
 
 KIND = "stage2"
 METHOD = "pix2pixhd"
-LOSS_COLUMNS = ("step", "epoch", "lr", "d", "g_gan", "g_feat", "g_vgg", "g_l1", "seconds")
-VAL_COLUMNS = ("step", "epoch", "ssim", "psnr")
 
 
 @dataclass
@@ -65,13 +68,12 @@ class TrainOptions:
 class Trainer:
     """Holds the model, optimizers, data and position of one run; :meth:`fit` trains until a budget is spent."""
 
-    def __init__(self, config: Pix2PixHDConfig, target: TargetVideo, run_dir: Path, device: torch.device,
+    def __init__(self, config: Pix2PixHDConfig, target: TargetVideo, run: RunFolder, device: torch.device,
                  vgg: VGGLoss | None, options: TrainOptions, source_video: str) -> None:
-        self.config, self.target, self.run_dir, self.device = config, target, run_dir, device
+        self.config, self.target, self.folder, self.device = config, target, run, device
         self.options, self.source_video = options, source_video
         self.vgg = vgg.to(device) if vgg is not None else None
-        self.rank = dist.get_rank() if dist.is_initialized() else 0
-        self.world = dist.get_world_size() if dist.is_initialized() else 1
+        self.run_dir, self.rank, self.world = run.path, run.rank, run.world
         train_range, self.val_range = split_ranges(len(target.poses), config.val_fraction)
         self.train_set = FramePairs(target, train_range)
         torch.manual_seed(options.seed)
@@ -87,7 +89,8 @@ class Trainer:
 
     # --- schedule -------------------------------------------------------------------------------------------
     def lr(self) -> float:
-        """pix2pixHD schedule scaled to ``total_epochs``: constant for the ``epochs_constant`` share, then linear to 0."""
+        """pix2pixHD schedule scaled to ``total_epochs``: constant for the ``epochs_constant`` share, then linear
+        to 0."""
         const_share = self.config.epochs_constant / max(1, self.config.epochs_constant + self.config.epochs_decay)
         constant = round(self.total_epochs * const_share)
         if self.epoch < constant:
@@ -104,13 +107,7 @@ class Trainer:
 
     # --- one update -----------------------------------------------------------------------------------------
     def _sync(self, optimizer: torch.optim.Optimizer) -> None:
-        if self.world == 1:
-            return
-        for group in optimizer.param_groups:
-            for p in group["params"]:
-                if p.grad is not None:
-                    dist.all_reduce(p.grad)
-                    p.grad /= self.world
+        self.folder.average_gradients(p for group in optimizer.param_groups for p in group["params"])
 
     def train_step(self, batch: list[torch.Tensor]) -> dict[str, float]:
         """One generator and one discriminator update on a batch of consecutive pairs."""
@@ -153,7 +150,7 @@ class Trainer:
         deadline = time.monotonic() + 60 * self.options.minutes if self.options.minutes else math.inf
         last_step = self.step + self.options.max_steps if self.options.max_steps else math.inf
         start = time.monotonic()
-        bar = tqdm(total=self.total_epochs, initial=self.epoch, desc="epochs", unit="epoch", disable=self.rank != 0)
+        bar = track(total=self.total_epochs, initial=self.epoch, desc="epochs", unit="epoch", disable=self.rank != 0)
         out_of_time = False
         while self.epoch < self.total_epochs and not out_of_time:
             for g in (*self.opt_g.param_groups, *self.opt_d.param_groups):
@@ -179,20 +176,14 @@ class Trainer:
                 bar.update(1)
         bar.close()
         self.write_samples()
-        return self.checkpoint()
+        meta = self.checkpoint()
+        self.folder.close()
+        return meta
 
     # --- outputs (rank 0 only) ------------------------------------------------------------------------------
     def _log(self, losses: dict[str, float], seconds: float) -> None:
-        if self.rank != 0:
-            return
-        path = self.run_dir / "losses.csv"
-        new = not path.is_file()
-        with open(path, "a", newline="") as f:
-            w = csv.writer(f)
-            if new:
-                w.writerow(LOSS_COLUMNS)
-            w.writerow([self.step, self.epoch, f"{self.lr():.3g}", *(f"{losses[k]:.5f}" for k in LOSS_COLUMNS[3:8]),
-                        f"{seconds:.1f}"])
+        self.folder.log("losses", {"step": self.step, "epoch": self.epoch, "lr": self.lr(), **losses,
+                                   "seconds": round(seconds, 1)})
 
     @torch.no_grad()
     def validate(self) -> dict[str, float]:
@@ -237,91 +228,31 @@ class Trainer:
             stats = body_stats(poses).to_dict()
         except DancesynthError:
             stats = None  # the target never shows head and ankles together: render with --no-normalize only
-        return {"kind": KIND, "method": METHOD, "config": self.config.to_dict(), "epoch": self.epoch,
+        return {"kind": KIND, "method": METHOD, "config": config_to_dict(self.config), "epoch": self.epoch,
                 "position": self.position, "step": self.step, "total_epochs": self.total_epochs,
                 "framing": self.target.framing.to_dict(), "target_stats": stats, "fps": poses.fps,
                 "canvas": [poses.width, poses.height], "video": self.source_video, "vgg": self.vgg is not None,
                 "seed": self.options.seed}
 
+    def optimizers(self) -> dict[str, torch.optim.Optimizer]:
+        return {"g": self.opt_g, "d": self.opt_d}
+
     def checkpoint(self) -> dict:
-        """Save weights + meta + optimizer/RNG state; append held-out SSIM/PSNR to validation.csv. Rank 0 only."""
+        """Append held-out SSIM/PSNR to validation.csv (rank 0), then save weights + meta + optimizer/RNG
+        state (every rank) and redraw losses.png."""
         meta = self.meta()
-        if self.rank != 0:
-            return meta
-        meta["validation"] = self.validate()
-        state = {"opt_g": self.opt_g.state_dict(), "opt_d": self.opt_d.state_dict(),
-                 "rng": capture_rng_state()}
-        save_checkpoint(self.run_dir, self.model, meta, training_state=state)
-        path = self.run_dir / "validation.csv"
-        new = not path.is_file()
-        with open(path, "a", newline="") as f:
-            w = csv.writer(f)
-            if new:
-                w.writerow(VAL_COLUMNS)
-            w.writerow([self.step, self.epoch, f"{meta['validation']['ssim']:.4f}", f"{meta['validation']['psnr']:.2f}"])
-        plot_losses(self.run_dir)
+        if self.folder.writer:
+            meta["validation"] = self.validate()
+            self.folder.log("validation", {"step": self.step, "epoch": self.epoch, **meta["validation"]})
+        self.folder.save(self.model, meta, self.optimizers())
+        self.folder.plot("losses.png")
         return meta
 
     def restore(self) -> None:
         """Continue from the run folder's latest checkpoint exactly where it stopped."""
-        state_dict, meta = load_checkpoint(self.run_dir, KIND)
-        self.model.load_state_dict(state_dict)
-        state = load_training_state(self.run_dir)
-        self.opt_g.load_state_dict(state["opt_g"])
-        self.opt_d.load_state_dict(state["opt_d"])
-        restore_rng_state(state["rng"])
+        meta, _ = self.folder.restore(self.model, self.optimizers())
         self.epoch, self.position, self.step = meta["epoch"], meta["position"], meta["step"]
         self.total_epochs = self.options.epochs or meta["total_epochs"]
-        if self.rank == 0:
-            _truncate_csv(self.run_dir / "losses.csv", self.step)
-            _truncate_csv(self.run_dir / "validation.csv", self.step)
-
-
-def _truncate_csv(path: Path, step: int) -> None:
-    """Drop rows logged after the checkpoint being resumed (they will be logged again)."""
-    if not path.is_file():
-        return
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    kept = rows[:1] + [r for r in rows[1:] if int(r[0]) <= step]
-    with atomic_path(path) as tmp, open(tmp, "w", newline="") as f:
-        csv.writer(f).writerows(kept)
-
-
-def plot_losses(run_dir: Path) -> None:
-    """``losses.png``: per-step losses (left) and held-out SSIM (right)."""
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    def read(name: str) -> dict[str, np.ndarray]:
-        path = run_dir / name
-        if not path.is_file():
-            return {}
-        data = np.genfromtxt(path, delimiter=",", names=True, ndmin=1)
-        return {k: data[k] for k in data.dtype.names}
-
-    losses, val = read("losses.csv"), read("validation.csv")
-    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
-    for key in LOSS_COLUMNS[3:8]:
-        if key in losses and np.any(losses[key]):
-            a.plot(losses["step"], losses[key], label=key, linewidth=0.8)
-    a.set_xlabel("step")
-    a.set_yscale("log")
-    a.legend()
-    if val:
-        b.plot(val["step"], val["ssim"], marker="o")
-    b.set_xlabel("step")
-    b.set_ylabel("held-out SSIM")
-    fig.tight_layout()
-    with atomic_path(run_dir / "losses.png") as tmp:
-        fig.savefig(tmp, dpi=90)
-    plt.close(fig)
-
-
-def _init_distributed(device: torch.device) -> None:
-    if int(os.environ.get("WORLD_SIZE", "1")) > 1 and not dist.is_initialized():
-        dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
 
 
 def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_name: str = "small",
@@ -340,28 +271,22 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
     if options.minutes is None and options.epochs is None:
         raise DancesynthError("Give a time budget with --minutes or a length with --epochs.")
     dev = resolve_device(device)
-    _init_distributed(dev)
-    if resume:
-        meta = load_meta(run_dir, KIND)
-        config = Pix2PixHDConfig.from_dict(meta["config"])
-        framing = Framing.from_dict(meta["framing"])
+    run = RunFolder(run_dir, KIND, dev, resume=resume, tables=("losses", "validation"))
+    if run.meta is not None:
+        config = config_from_dict(Pix2PixHDConfig, run.meta["config"])
+        framing = Framing.from_dict(run.meta["framing"])
     else:
-        if (run_dir / "latest.json").is_file():
-            raise DancesynthError(f"{run_dir} already holds a trained model; pass --resume to continue it "
-                                  "or choose a new --out folder.")
         config = preset(preset_name, **(overrides or {}))
         framing = None
-    run_dir.mkdir(parents=True, exist_ok=True)
     # Rank 0 extracts and caches poses and frames; the other ranks then read the caches.
-    rank0 = not dist.is_initialized() or dist.get_rank() == 0
-    if not rank0:
-        dist.barrier()
+    if not run.writer:
+        run.barrier()
     seq = check_poses_match(load_or_extract_poses(video, run_dir, Path(poses) if poses else None), video)
     framing = framing or person_framing(seq, config.width, config.height)
     frames = cache_frames(video, framing, run_dir, len(seq))
-    if rank0 and dist.is_initialized():
-        dist.barrier()
-    trainer = Trainer(config, TargetVideo(frames, seq, framing), run_dir, dev, build_vgg_loss(vgg_weights),
+    if run.writer:
+        run.barrier()
+    trainer = Trainer(config, TargetVideo(frames, seq, framing), run, dev, build_vgg_loss(vgg_weights),
                       options, str(video))
     if resume:
         trainer.restore()

@@ -5,7 +5,7 @@ Nothing is downloaded: without a weights file the loss is switched off and a not
 
 from __future__ import annotations
 
-import sys
+import logging
 from pathlib import Path
 
 import torch
@@ -15,13 +15,15 @@ from torchvision.models.vgg import cfgs, make_layers
 
 from dancesynth.core.errors import DancesynthError
 
+logger = logging.getLogger(__name__)
+
 # torchvision vgg19.features indices ending at relu1_1, relu2_1, relu3_1, relu4_1, relu5_1, and pix2pixHD's weights.
 SLICE_ENDS = (2, 7, 12, 21, 30)
 LAYER_WEIGHTS = (1.0 / 32, 1.0 / 16, 1.0 / 8, 1.0 / 4, 1.0)
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
 IMAGENET_STD = (0.229, 0.224, 0.225)
 
-NOTICE = ("notice: VGG perceptual loss is OFF (no --vgg-weights file given). pix2pixHD uses it with weight 10; "
+NOTICE = ("VGG perceptual loss is OFF (no --vgg-weights file given). pix2pixHD uses it with weight 10; "
           "to turn it on pass a local torchvision vgg19 ImageNet state dict (.pth or .safetensors).")
 _notice_shown = False
 
@@ -77,11 +79,11 @@ class VGGLoss(nn.Module):
 
 
 def build_vgg_loss(weights_path: str | Path | None) -> VGGLoss | None:
-    """The VGG loss from a local weights file, or None (after printing :data:`NOTICE` once) when no file is given."""
+    """The VGG loss from a local weights file, or None (after logging :data:`NOTICE` once) when no file is given."""
     global _notice_shown
     if weights_path is None:
         if not _notice_shown:
-            print(NOTICE, file=sys.stderr)
+            logger.warning(NOTICE)
             _notice_shown = True
         return None
     return VGGLoss(_load_state_dict(Path(weights_path)))

@@ -1,14 +1,19 @@
-"""Shared fixtures: a tiny stage-1 dataset whose audio features are pre-cached, so no test waits for librosa."""
+"""Shared fixtures: a tiny stage-1 dataset whose music features are pre-cached, so no test waits for librosa, and
+drum loops with known beats."""
 
-from pathlib import Path
+import os
 
-import numpy as np
-import pytest
-import soundfile
+os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(os.path.dirname(__file__), "..", ".venv", "numba-cache"))
 
-from stage1_pose.audio import feature_dim
-from stage1_pose.data.dataset import Clip, clip_paths, create_layout, write_beats, write_manifest
-from dancesynth.core.skeleton import PoseSequence
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+import soundfile  # noqa: E402
+
+from dancesynth.core.skeleton import PoseSequence  # noqa: E402
+from stage1_pose.data.dataset import Clip, clip_paths, create_layout, write_beats, write_manifest  # noqa: E402
+from stage1_pose.features import feature_dim  # noqa: E402
 
 FPS, SR, SECONDS = 15.0, 8000, 8.0
 
@@ -45,3 +50,25 @@ def write_tiny_stage1_dataset(root: Path, splits=("train", "train", "train", "va
 def tiny_stage1_dataset(tmp_path_factory) -> Path:
     """Path of a read-only tiny dataset (5 clips of 8 s: 3 train, 1 val, 1 test)."""
     return write_tiny_stage1_dataset(tmp_path_factory.mktemp("tiny_stage1") / "data")
+
+
+def make_drum_loop(bpm: float, seconds: float, sr: int, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Kick on every beat, a loud noise hi-hat half-way between beats; returns (samples, kick times in s)."""
+    rng = np.random.default_rng(seed)
+    y = np.zeros(int(seconds * sr))
+    t = np.arange(int(0.15 * sr)) / sr
+    kick = np.sin(2 * np.pi * (60 + 100 * np.exp(-t * 30)) * t) * np.exp(-t * 20)
+    hat = rng.standard_normal(int(0.05 * sr)) * np.exp(-np.arange(int(0.05 * sr)) / sr * 80)
+    beats = np.arange(0.0, seconds - 0.2, 60.0 / bpm)
+    for b in beats:
+        for start, sound, gain in ((b, kick, 1.0), (b + 30.0 / bpm, hat, 1.5)):
+            i = int(start * sr)
+            part = sound[:max(0, len(y) - i)]
+            y[i:i + len(part)] += gain * part
+    return (0.4 * y / np.abs(y).max()).astype(np.float32), beats
+
+
+@pytest.fixture
+def drum_loop():
+    """:func:`make_drum_loop`: ``drum_loop(bpm, seconds, sr)`` -> (samples, kick times in seconds)."""
+    return make_drum_loop

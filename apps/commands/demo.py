@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import logging
 
-from apps.demo import run_demo
+from apps.arguments import non_negative_int, output_folder, positive_float
 
 NAME = "demo"
 HELP = "build the built-in dataset, train small models and make a dancing video (about 15 min on 2 CPU cores)"
@@ -24,14 +25,19 @@ example:
   dancesynth demo --out demo_output --minutes 15
 """
 
+logger = logging.getLogger(__name__)
+
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", default="demo_output", metavar="DIR", help="output folder (default demo_output)")
-    p.add_argument("--minutes", type=float, default=15.0, help="total time budget in minutes (default 15)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--out", type=output_folder, default="demo_output", metavar="DIR",
+                   help="output folder (default demo_output)")
+    p.add_argument("--minutes", type=positive_float, default=15.0, help="total time budget in minutes (default 15)")
+    p.add_argument("--seed", type=non_negative_int, default=0, help="random seed (default 0)")
     p.add_argument("--device", default="auto", help="auto (GPU when available), cpu or cuda (default auto)")
 
 
 def run(args: argparse.Namespace) -> None:
+    from apps.demo import run_demo
+
     written = run_demo(args.out, minutes=args.minutes, seed=args.seed, device=args.device)
-    print("wrote " + ", ".join(map(str, written)))
+    logger.info("wrote " + ", ".join(map(str, written)))

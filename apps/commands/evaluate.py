@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import logging
+
+from apps.arguments import non_negative_float, output_folder, positive_float, positive_int
 
 NAME = "evaluate"
 HELP = "evaluate stage-1 pose models on the held-out songs: FID, ACC, beat metrics, diversity, plots"
@@ -23,21 +26,24 @@ examples:
   dancesynth evaluate --data data/builtin --out reports/baselines --trials 2 --seconds 30
 """
 
+logger = logging.getLogger(__name__)
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     # Defaults live in stage1_pose.evaluate.EvaluationOptions; None here means "use it" (keeps --help fast).
     parser.add_argument("--data", required=True, metavar="DIR", help="dataset folder (dancesynth make-dataset)")
     parser.add_argument("--models", nargs="*", default=[], metavar="RUN_DIR",
                         help="stage-1 run folders written by train-pose (none: baselines only)")
-    parser.add_argument("--out", required=True, metavar="REPORT_DIR", help="folder for the report (created)")
-    parser.add_argument("--trials", type=int, help="seeds per model (default 3)")
-    parser.add_argument("--seconds", type=float, help="seconds of each test song to dance to (default 60)")
+    parser.add_argument("--out", type=output_folder, required=True, metavar="REPORT_DIR",
+                        help="folder for the report (created)")
+    parser.add_argument("--trials", type=positive_int, help="seeds per model (default 3)")
+    parser.add_argument("--seconds", type=positive_float, help="seconds of each test song to dance to (default 60)")
     parser.add_argument("--classifier", metavar="RUN_DIR", help="style classifier run (default: train/cache one)")
     parser.add_argument("--classifier-preset", choices=("paper", "small"),
                         help="preset when the classifier is trained here (default paper)")
-    parser.add_argument("--tolerance", type=float, dest="tolerance_frames",
+    parser.add_argument("--tolerance", type=non_negative_float, dest="tolerance_frames",
                         help="beat hit tolerance in pose frames (default ±2)")
-    parser.add_argument("--video-seconds", type=float, help="length of the sample videos (default 10 s)")
+    parser.add_argument("--video-seconds", type=positive_float, help="length of the sample videos (default 10 s)")
     parser.add_argument("--device", help="auto, cpu or cuda (default auto)")
 
 
@@ -47,5 +53,5 @@ def run(args: argparse.Namespace) -> None:
     names = ("trials", "seconds", "device", "classifier", "classifier_preset", "tolerance_frames", "video_seconds")
     options = EvaluationOptions(**{k: getattr(args, k) for k in names if getattr(args, k) is not None})
     rows = run_evaluation(args.data, args.models, args.out, options)
-    print(markdown_table(rows))
-    print(f"wrote {args.out}/report.md, report.json, fid_over_time.png, beat_alignment.png, videos/")
+    logger.info(markdown_table(rows))
+    logger.info(f"wrote {args.out}/report.md, report.json, fid_over_time.png, beat_alignment.png, videos/")

@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import logging
+
+from apps.arguments import existing_file, non_negative_int, output_folder, positive_float, positive_int
 
 NAME = "import-dance"
 HELP = "add a recorded dance (OpenPose JSON folder or AIST++ keypoints) and its song to a dataset folder"
@@ -28,25 +31,31 @@ examples:
   dancesynth import-dance --out data/aist --aistpp gBR_sBM_cAll_d04_mBR0_ch01.npy --audio mBR0.mp3
 """
 
+logger = logging.getLogger(__name__)
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", required=True, metavar="DIR", help="dataset folder to add to (created if new)")
+    parser.add_argument("--out", type=output_folder, required=True, metavar="DIR",
+                        help="dataset folder to add to (created if new)")
     source = parser.add_mutually_exclusive_group(required=True)
     source.add_argument("--openpose", metavar="FOLDER", help="folder of OpenPose *_keypoints.json files")
-    source.add_argument("--aistpp", metavar="FILE", help="AIST++ 2D keypoints converted to .npy or .npz")
-    parser.add_argument("--audio", required=True, metavar="SONG", help="the song (any FFmpeg-readable file)")
+    source.add_argument("--aistpp", type=existing_file, metavar="FILE",
+                        help="AIST++ 2D keypoints converted to .npy or .npz")
+    parser.add_argument("--audio", type=existing_file, required=True, metavar="SONG",
+                        help="the song (any FFmpeg-readable file)")
     parser.add_argument("--style", help="style label (required for --openpose)")
-    parser.add_argument("--fps", type=float, help="frame rate of the keypoints (AIST++ default 60)")
-    parser.add_argument("--width", type=int, help="video width in pixels (AIST++ default 1920)")
-    parser.add_argument("--height", type=int, help="video height in pixels (AIST++ default 1080)")
-    parser.add_argument("--view", type=int, default=0, help="camera of a multi-view AIST++ array (default 0)")
+    parser.add_argument("--fps", type=positive_float, help="frame rate of the keypoints (AIST++ default 60)")
+    parser.add_argument("--width", type=positive_int, help="video width in pixels (AIST++ default 1920)")
+    parser.add_argument("--height", type=positive_int, help="video height in pixels (AIST++ default 1080)")
+    parser.add_argument("--view", type=non_negative_int, default=0,
+                        help="camera of a multi-view AIST++ array (default 0)")
     parser.add_argument("--id", dest="clip_id", help="clip id (default: the folder or file name)")
     parser.add_argument("--split", choices=("train", "val", "test"), help="split (default: by song)")
 
 
 def run(args: argparse.Namespace) -> None:
-    from stage1_pose.data import importers
     from dancesynth.core.errors import DancesynthError
+    from stage1_pose.data import importers
 
     if args.openpose:
         missing = [f"--{k}" for k in ("style", "fps", "width", "height") if getattr(args, k) is None]
@@ -58,4 +67,4 @@ def run(args: argparse.Namespace) -> None:
         frame = {k: v for k, v in (("fps", args.fps), ("width", args.width), ("height", args.height)) if v is not None}
         clip = importers.import_aistpp(args.aistpp, args.audio, args.out, style=args.style, view=args.view,
                                        clip_id=args.clip_id, split=args.split, **frame)
-    print(f"added clip {clip.id} (style {clip.style}, split {clip.split}) to {args.out}")
+    logger.info(f"added clip {clip.id} (style {clip.style}, split {clip.split}) to {args.out}")

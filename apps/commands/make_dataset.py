@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import logging
+
+from apps.arguments import non_negative_int, output_folder, positive_float, positive_int
 
 NAME = "make-dataset"
 HELP = "generate synthetic songs and the dances performed to them (the built-in training data)"
@@ -30,14 +33,19 @@ examples:
   dancesynth make-dataset --out /tmp/tiny --clips 6 --seconds 10 --seed 3
 """
 
+logger = logging.getLogger(__name__)
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", required=True, metavar="DIR", help="new dataset folder (must not hold a dataset)")
-    parser.add_argument("--clips", type=int, default=100, metavar="N", help="number of songs (default %(default)s)")
-    parser.add_argument("--seconds", type=float, default=60.0, metavar="S",
+    parser.add_argument("--out", type=output_folder, required=True, metavar="DIR",
+                        help="new dataset folder (must not hold a dataset)")
+    parser.add_argument("--clips", type=positive_int, default=100, metavar="N",
+                        help="number of songs (default %(default)s)")
+    parser.add_argument("--seconds", type=positive_float, default=60.0, metavar="S",
                         help="length of each song in seconds (default %(default)s)")
-    parser.add_argument("--seed", type=int, default=0, metavar="K", help="random seed (default %(default)s)")
-    parser.add_argument("--workers", type=int, default=2, metavar="W",
+    parser.add_argument("--seed", type=non_negative_int, default=0, metavar="K",
+                        help="random seed (default %(default)s)")
+    parser.add_argument("--workers", type=positive_int, default=2, metavar="W",
                         help="worker processes (default %(default)s)")
 
 
@@ -48,4 +56,5 @@ def run(args: argparse.Namespace) -> None:
     path = make_dataset(args.out, clips=args.clips, seconds=args.seconds, seed=args.seed, workers=args.workers)
     ds = DanceDataset(path.parent)
     counts = ", ".join(f"{s} {len(ds.clips(s))}" for s in ("train", "val", "test"))
-    print(f"wrote {path}: {len(ds.clips())} clips of {args.seconds:g} s in styles {', '.join(ds.styles)} ({counts})")
+    logger.info(f"wrote {path}: {len(ds.clips())} clips of {args.seconds:g} s in styles {', '.join(ds.styles)} "
+                f"({counts})")

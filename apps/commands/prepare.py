@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import logging
+
+from apps.arguments import output_folder, positive_float
 
 NAME = "prepare"
 HELP = "turn a folder of real dance videos (style = sub-folder name) into a stage-1 training dataset"
@@ -26,11 +29,14 @@ examples:
   dancesynth train-pose --method dance_revolution --data data/my_dances --out runs/my_dr
 """
 
+logger = logging.getLogger(__name__)
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("videos_dir", metavar="VIDEOS_DIR", help="folder of dance videos, one sub-folder per style")
-    parser.add_argument("--out", required=True, metavar="DATASET_DIR", help="dataset folder to create or add to")
-    parser.add_argument("--clip-seconds", type=float, default=60.0,
+    parser.add_argument("--out", type=output_folder, required=True, metavar="DATASET_DIR",
+                        help="dataset folder to create or add to")
+    parser.add_argument("--clip-seconds", type=positive_float, default=60.0,
                         help="length of the clips each video is cut into, in seconds (default 60)")
     parser.add_argument("--default-style", default="dance",
                         help="style of the videos directly in VIDEOS_DIR (default 'dance')")
@@ -42,9 +48,9 @@ def run(args: argparse.Namespace) -> None:
 
     report = prepare_videos(args.videos_dir, args.out, args.clip_seconds, args.default_style)
     for video, reason in report.skipped.items():
-        print(f"skipped {video}: {reason}")
+        logger.warning(f"skipped {video}: {reason}")
     if not report.added and not report.already_there:
         raise DancesynthError(f"None of the videos in {args.videos_dir} could be used (reasons above); use videos "
                               "with a soundtrack and one clearly visible dancer.")
-    print(f"added {len(report.added)} clips ({len(report.already_there)} were there already) to {args.out}; "
-          f"train on it with `dancesynth train-pose --data {args.out} ...`")
+    logger.info(f"added {len(report.added)} clips ({len(report.already_there)} were there already) to "
+                f"{args.out}; train on it with `dancesynth train-pose --data {args.out} ...`")

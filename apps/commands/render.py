@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import argparse
+import logging
+
+from apps.arguments import existing_file, output_file, positive_int
 
 NAME = "render"
 HELP = "render a pose sequence as a video of the person a train-video model learned"
@@ -18,16 +21,18 @@ examples:
   dancesynth render runs/person/poses.npz --model runs/person --out replay.mp4 --no-normalize
 """
 
+logger = logging.getLogger(__name__)
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("poses", metavar="POSES", help="pose file (.npz, BODY_25)")
+    parser.add_argument("poses", type=existing_file, metavar="POSES", help="pose file (.npz, BODY_25)")
     parser.add_argument("--model", required=True, metavar="RUN_DIR", help="run folder written by train-video")
-    parser.add_argument("--out", required=True, metavar="VIDEO.mp4", help="output video")
-    parser.add_argument("--audio", metavar="SONG", help="audio file to mux (any FFmpeg format)")
+    parser.add_argument("--out", type=output_file, required=True, metavar="VIDEO.mp4", help="output video")
+    parser.add_argument("--audio", type=existing_file, metavar="SONG", help="audio file to mux (any FFmpeg format)")
     parser.add_argument("--no-normalize", action="store_true", help="use the poses as they are (target canvas)")
     parser.add_argument("--no-optimize", action="store_true", help="plain PyTorch forward (slower, for debugging)")
     parser.add_argument("--device", default="auto", help="auto, cpu or cuda")
-    parser.add_argument("--threads", type=int, metavar="N",
+    parser.add_argument("--threads", type=positive_int, metavar="N",
                         help="CPU threads for torch (default: torch's choice; 1 is faster on a busy machine)")
 
 
@@ -36,14 +41,10 @@ def run(args: argparse.Namespace) -> None:
 
     if args.threads:
         torch.set_num_threads(args.threads)
-    from dancesynth.core.media import decode_audio
-    from dancesynth.core.skeleton import PoseSequence
-    from stage2_video.render import load_appearance_model, render_video
+    from dancesynth.api import render
+    from dancesynth.core.media import probe_video
 
-    poses = PoseSequence.load(args.poses)
-    model = load_appearance_model(args.model, args.device, optimize=not args.no_optimize)
-    audio_sr = 44100
-    audio = decode_audio(args.audio, audio_sr) if args.audio else None
-    path = render_video(poses, model, args.out, audio=audio, audio_sr=audio_sr if audio is not None else None,
-                        normalize=not args.no_normalize)
-    print(f"wrote {path}: {len(poses)} frames at {poses.fps:g} fps, {model.config.width}x{model.config.height}")
+    path = render(args.poses, model=args.model, out=args.out, audio=args.audio, normalize=not args.no_normalize,
+                  optimize=not args.no_optimize, device=args.device)
+    video = probe_video(path)
+    logger.info(f"wrote {path}: {video.num_frames} frames at {video.fps:g} fps, {video.width}x{video.height}")

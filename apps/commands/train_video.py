@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import logging
 
+from apps.arguments import existing_file, non_negative_int, output_folder, positive_float, positive_int
+from apps.config_flags import add_config_arguments, print_config, resolve_config
+from dancesynth.core.config import config_to_dict
 from dancesynth.core.errors import DancesynthError
-from stage2_video.models.pix2pixhd import PRESETS
 
 NAME = "train-video"
 HELP = "train the appearance model (pix2pixHD + temporal smoothing) on a video of the target person"
@@ -17,6 +20,8 @@ is held out: RUN_DIR/validation.csv reports SSIM / PSNR on it at every checkpoin
 grids (real | skeleton | generated), RUN_DIR/losses.csv and losses.png the losses.
 
 Stops cleanly after --minutes (checkpointing) or --epochs; --resume continues exactly where it stopped.
+The model config is the --preset, then the settings of a --config TOML file, then --size / --batch-size, then
+each --set FIELD=VALUE (e.g. --set lambda_l1=5); --print-config shows the result and exits without training.
 Without --vgg-weights the VGG19 perceptual loss is off (a notice says so); nothing is downloaded.
 Multi-process: torchrun --nproc_per_node N -m apps.cli train-video ...
 
@@ -25,27 +30,36 @@ examples:
   dancesynth train-video synthetic.mp4 --poses synthetic_poses.npz --out runs/synth --minutes 20
   dancesynth train-video person.mp4 --out runs/person --resume --minutes 10
   dancesynth train-video person.mp4 --out runs/hd --preset paper --device cuda --vgg-weights vgg19.pth --epochs 200
+  dancesynth train-video person.mp4 --out runs/p --set ngf=64 --set n_blocks=6 --print-config > model.toml
+  dancesynth train-video person.mp4 --out runs/p --config model.toml --minutes 20
 """
+
+logger = logging.getLogger(__name__)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("video", metavar="TARGET_VIDEO", help="video of the target person (any FFmpeg format)")
-    parser.add_argument("--out", required=True, metavar="RUN_DIR", help="run folder for checkpoints and logs")
-    parser.add_argument("--preset", choices=sorted(PRESETS), default="small",
+    parser.add_argument("video", type=existing_file, metavar="TARGET_VIDEO",
+                        help="video of the target person (any FFmpeg format)")
+    parser.add_argument("--out", type=output_folder, required=True, metavar="RUN_DIR",
+                        help="run folder for checkpoints and logs")
+    parser.add_argument("--preset", choices=("paper", "small"), default="small",
                         help="small: CPU, 128 px, global generator; paper: 1024x512, local enhancer, GPU")
     parser.add_argument("--size", metavar="WxH", help="model resolution override, e.g. 256x256 (multiple of 8)")
-    parser.add_argument("--minutes", type=float, help="wall-clock budget of this invocation, in minutes")
-    parser.add_argument("--epochs", type=int, help="total epochs (default: the preset's 100 + 100 decaying)")
-    parser.add_argument("--batch-size", type=int, help="consecutive-frame pairs per step (preset default)")
+    parser.add_argument("--minutes", type=positive_float, help="wall-clock budget of this invocation, in minutes")
+    parser.add_argument("--epochs", type=positive_int, help="total epochs (default: the preset's 100 + 100 decaying)")
+    parser.add_argument("--batch-size", type=positive_int, help="consecutive-frame pairs per step (preset default)")
     parser.add_argument("--resume", action="store_true", help="continue the run in RUN_DIR exactly")
-    parser.add_argument("--poses", metavar="POSES.npz", help="poses of TARGET_VIDEO to use instead of extracting")
-    parser.add_argument("--vgg-weights", metavar="FILE", help="local torchvision vgg19 weights (.pth/.safetensors)")
-    parser.add_argument("--checkpoint-every", type=int, default=200, metavar="STEPS")
-    parser.add_argument("--sample-every", type=int, default=200, metavar="STEPS")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--poses", type=existing_file, metavar="POSES.npz",
+                        help="poses of TARGET_VIDEO to use instead of extracting")
+    parser.add_argument("--vgg-weights", type=existing_file, metavar="FILE",
+                        help="local torchvision vgg19 weights (.pth/.safetensors)")
+    parser.add_argument("--checkpoint-every", type=positive_int, default=200, metavar="STEPS")
+    parser.add_argument("--sample-every", type=positive_int, default=200, metavar="STEPS")
+    parser.add_argument("--seed", type=non_negative_int, default=0)
     parser.add_argument("--device", default="auto", help="auto, cpu or cuda")
-    parser.add_argument("--threads", type=int, metavar="N",
+    parser.add_argument("--threads", type=positive_int, metavar="N",
                         help="CPU threads for torch (default: torch's choice; 1 is faster on a busy machine)")
+    add_config_arguments(parser, "lambda_l1=5")
 
 
 def _size(text: str) -> dict:
@@ -57,19 +71,25 @@ def _size(text: str) -> dict:
 
 
 def run(args: argparse.Namespace) -> None:
+    from stage2_video.models.pix2pixhd import PRESETS
+
+    flags = _size(args.size) if args.size else {}
+    if args.batch_size:
+        flags["batch_size"] = args.batch_size
+    config = resolve_config(PRESETS[args.preset], args, flags)
+    if args.print_config:
+        print_config(config, args.print_config)
+        return
     import torch
 
     if args.threads:
         torch.set_num_threads(args.threads)
-    from stage2_video.train import TrainOptions, train_video
+    from dancesynth.api import train_video
 
-    overrides = _size(args.size) if args.size else {}
-    if args.batch_size:
-        overrides["batch_size"] = args.batch_size
-    options = TrainOptions(minutes=args.minutes, epochs=args.epochs, checkpoint_every=args.checkpoint_every,
-                           sample_every=args.sample_every, seed=args.seed)
-    meta = train_video(args.video, args.out, args.preset, options, resume=args.resume, poses=args.poses,
-                       vgg_weights=args.vgg_weights, device=args.device, overrides=overrides)
+    meta = train_video(args.video, out=args.out, preset=args.preset, overrides=config_to_dict(config),
+                       minutes=args.minutes, epochs=args.epochs, resume=args.resume, poses=args.poses,
+                       vgg_weights=args.vgg_weights, checkpoint_every=args.checkpoint_every,
+                       sample_every=args.sample_every, seed=args.seed, device=args.device)
     val = meta.get("validation", {})
-    print(f"saved {args.out}/latest.safetensors: epoch {meta['epoch']}, step {meta['step']}, "
-          f"held-out SSIM {val.get('ssim', float('nan')):.3f}, PSNR {val.get('psnr', float('nan')):.2f} dB")
+    logger.info(f"saved {args.out}: epoch {meta['epoch']}, step {meta['step']}, "
+                f"held-out SSIM {val.get('ssim', float('nan')):.3f}, PSNR {val.get('psnr', float('nan')):.2f} dB")

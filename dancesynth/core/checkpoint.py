@@ -1,23 +1,32 @@
-"""Run folders: model checkpoints (safetensors + JSON) and the training state that makes resume exact.
+"""Checkpoint files: model weights (safetensors) + JSON metadata + the training state that makes resume exact.
 
-A checkpoint ``TAG`` in a run folder is three files, each written atomically:
+A run folder holds one current checkpoint, reached through the pointer file ``latest.json``::
 
-* ``TAG.safetensors`` - the model's state dict (weights and buffers), nothing executable;
-* ``TAG.json`` - metadata: at least ``kind`` (``"stage1"``, ``"stage2"``, ``"stgcn"`` ...) plus whatever the
-  trainer needs to rebuild the model (method, config, epoch, step, curriculum state, feature stats, fps, canvas);
-* ``TAG.training.pt`` - optional: optimizer states, RNG states, data position. Plain tensors / dicts / lists
-  only, read back with ``torch.load(weights_only=True)``.
+    RUN_DIR/latest.json                      metadata: ``kind`` ("stage1", "stage2", "stgcn" ...), what the
+                                             trainer needs to rebuild the model, and ``checkpoint``: the folder
+    RUN_DIR/ckpt-<step>-<id>/model.safetensors   the state dict (weights and buffers), nothing executable
+    RUN_DIR/ckpt-<step>-<id>/training.pt         optional: optimizer and RNG states, data position; plain
+                                                 tensors / dicts / lists, read with ``torch.load(weights_only=True)``
 
-The JSON is written last and carries a ``save_id`` that the other two files repeat, so a crash between the
-renames is detected instead of silently pairing new weights with old metadata.
+A save writes a new checkpoint folder completely beside the current one (under a unique temporary name,
+renamed when complete), then switches to it with one atomic rename of ``latest.json``, and only then deletes
+the previous folder. A process killed at any instant therefore leaves the previous or the new checkpoint
+readable, never a mix; leftovers of an interrupted save are deleted by the next save or when a trainer
+opens the folder. A ``save_id`` in the JSON is repeated in both files, so a stray file is detected.
+
+Runs written before checkpoints got folders (``latest.safetensors`` / ``latest.training.pt`` beside
+``latest.json``) are still loaded; their next save moves them to the folder layout.
 """
 
 from __future__ import annotations
 
 import json
 import os
+import pickle
 import random
+import re
 import secrets
+import shutil
 from pathlib import Path
 from typing import Any
 
@@ -28,7 +37,13 @@ from safetensors.torch import load_file, save_file
 from torch import nn
 
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.fileio import atomic_path
+from dancesynth.core.fileio import PART_MARKER, atomic_path
+
+POINTER = "latest.json"
+WEIGHTS = "model.safetensors"
+TRAINING = "training.pt"
+LEGACY_WEIGHTS, LEGACY_TRAINING = "latest.safetensors", "latest.training.pt"
+_CHECKPOINT_DIR = re.compile(r"^ckpt-\d+-[0-9a-f]+$")
 
 # What each kind of run is and how it is made: used to tell a user what to pass instead.
 KIND_DESCRIPTIONS: dict[str, str] = {
@@ -57,38 +72,85 @@ def _plain_state_dict(model: nn.Module) -> dict[str, torch.Tensor]:
     return out
 
 
-def save_checkpoint(run_dir: str | os.PathLike, model: nn.Module, meta: dict[str, Any],
-                    training_state: dict[str, Any] | None = None, tag: str = "latest") -> None:
-    """Write ``run_dir/TAG.safetensors``, ``TAG.json`` and (if given) ``TAG.training.pt``.
+def has_checkpoint(run_dir: str | os.PathLike) -> bool:
+    """Whether ``run_dir`` holds a checkpoint (its pointer file exists)."""
+    return (Path(run_dir) / POINTER).is_file()
 
-    ``meta`` must be JSON-serialisable and contain ``kind``. ``training_state`` may hold tensors, numbers,
-    strings, lists, tuples and dicts (e.g. ``optimizer.state_dict()``, :func:`capture_rng_state`). The run
-    folder is created if needed.
+
+def save_checkpoint(run_dir: str | os.PathLike, model: nn.Module, meta: dict[str, Any],
+                    training_state: dict[str, Any] | None = None) -> None:
+    """Make (model, ``meta``, ``training_state``) the current checkpoint of ``run_dir``, atomically.
+
+    ``meta`` must be JSON-serialisable and contain ``kind``; an integer ``step`` entry names the checkpoint
+    folder. ``training_state`` may hold tensors, numbers, strings, lists, tuples and dicts (e.g.
+    ``optimizer.state_dict()``, :func:`capture_rng_state`). The run folder is created if needed.
     """
     if "kind" not in meta:
         raise ValueError("checkpoint meta needs a 'kind' entry (e.g. 'stage1')")
     run_dir = Path(run_dir)
     run_dir.mkdir(parents=True, exist_ok=True)
     save_id = secrets.token_hex(8)
-    text = json.dumps({**meta, "save_id": save_id}, indent=2, sort_keys=True)
-    if training_state is not None:
-        with atomic_path(run_dir / f"{tag}.training.pt") as tmp:
-            torch.save({"save_id": save_id, "state": training_state}, tmp)
-    with atomic_path(run_dir / f"{tag}.safetensors") as tmp:
-        save_file(_plain_state_dict(model), str(tmp), metadata={"save_id": save_id, "kind": str(meta["kind"])})
-    with atomic_path(run_dir / f"{tag}.json") as tmp:
+    name = f"ckpt-{int(meta.get('step', 0)):08d}-{save_id}"
+    text = json.dumps({**meta, "checkpoint": name, "save_id": save_id}, indent=2, sort_keys=True)
+    with atomic_path(run_dir / name, folder=True) as tmp:
+        tmp.mkdir()
+        save_file(_plain_state_dict(model), str(tmp / WEIGHTS),
+                  metadata={"save_id": save_id, "kind": str(meta["kind"])})
+        if training_state is not None:
+            torch.save({"save_id": save_id, "state": training_state}, tmp / TRAINING)
+    with atomic_path(run_dir / POINTER) as tmp:
         tmp.write_text(text)
+    remove_stale_checkpoints(run_dir)
 
 
-def load_meta(run_dir: str | os.PathLike, expected_kind: str, tag: str = "latest") -> dict[str, Any]:
-    """The JSON metadata of checkpoint ``tag``, after checking the folder is a run of ``expected_kind``."""
+def update_meta(run_dir: str | os.PathLike, expected_kind: str, entries: dict[str, Any]) -> dict[str, Any]:
+    """Add ``entries`` (e.g. a final test accuracy) to the current checkpoint's metadata; returns the new meta."""
+    meta = {**load_meta(run_dir, expected_kind), **entries}
+    with atomic_path(Path(run_dir) / POINTER) as tmp:
+        tmp.write_text(json.dumps(meta, indent=2, sort_keys=True))
+    return meta
+
+
+def remove_stale_checkpoints(run_dir: str | os.PathLike) -> None:
+    """Delete what interrupted or superseded saves left: checkpoint folders other than the current one, their
+    temporary folders and temporary pointer files (and the files of the pre-folder layout once moved on)."""
+    run_dir = Path(run_dir)
+    current = None
+    if has_checkpoint(run_dir):
+        try:
+            current = json.loads((run_dir / POINTER).read_text()).get("checkpoint")
+        except (json.JSONDecodeError, UnicodeDecodeError, AttributeError):
+            return  # not our pointer: touch nothing
+    stem = Path(POINTER).stem
+    for entry in run_dir.iterdir():
+        name = entry.name
+        stale_dir = _CHECKPOINT_DIR.match(name) and name != current
+        temporary = PART_MARKER in name and (name.startswith(".ckpt-") or name.startswith(f".{stem}."))
+        legacy = current is not None and name in (LEGACY_WEIGHTS, LEGACY_TRAINING)
+        if stale_dir or temporary or legacy:
+            if entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry, ignore_errors=True)
+            else:
+                entry.unlink(missing_ok=True)
+
+
+def _files(run_dir: Path, meta: dict[str, Any]) -> tuple[Path, Path]:
+    """(weights, training state) paths of the checkpoint ``meta`` describes."""
+    if "checkpoint" in meta:
+        folder = run_dir / str(meta["checkpoint"])
+        return folder / WEIGHTS, folder / TRAINING
+    return run_dir / LEGACY_WEIGHTS, run_dir / LEGACY_TRAINING
+
+
+def load_meta(run_dir: str | os.PathLike, expected_kind: str) -> dict[str, Any]:
+    """The JSON metadata of the current checkpoint, after checking the folder is a run of ``expected_kind``."""
     run_dir = Path(run_dir)
     what = _describe(expected_kind)
     if not run_dir.is_dir():
         raise DancesynthError(f"Run folder {run_dir} does not exist; pass the --out folder of {what}.")
-    path = run_dir / f"{tag}.json"
+    path = run_dir / POINTER
     if not path.is_file():
-        raise DancesynthError(f"{run_dir} holds no {tag!r} checkpoint ({path.name} is missing), so it is not a "
+        raise DancesynthError(f"{run_dir} holds no checkpoint ({path.name} is missing), so it is not a "
                               f"finished dancesynth run; pass the --out folder of {what}.")
     try:
         meta = json.loads(path.read_text())
@@ -96,48 +158,58 @@ def load_meta(run_dir: str | os.PathLike, expected_kind: str, tag: str = "latest
     except (json.JSONDecodeError, KeyError, TypeError, UnicodeDecodeError) as e:
         raise DancesynthError(f"{path} is not dancesynth checkpoint metadata; pass the --out folder of {what}.") from e
     if kind != expected_kind:
-        raise DancesynthError(f"{run_dir} is {_describe(kind)}, but {what} is needed here; pass such a run folder instead.")
+        raise DancesynthError(f"{run_dir} is {_describe(kind)}, but {what} is needed here; "
+                              "pass such a run folder instead.")
     return meta
 
 
-def load_checkpoint(run_dir: str | os.PathLike, expected_kind: str,
-                    tag: str = "latest") -> tuple[dict[str, torch.Tensor], dict[str, Any]]:
-    """``(state_dict, meta)`` of checkpoint ``tag``; tensors on CPU.
+def load_checkpoint(run_dir: str | os.PathLike, expected_kind: str) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:
+    """``(state_dict, meta)`` of the current checkpoint; tensors on CPU.
 
     Raises :class:`DancesynthError` when the folder is missing, is not a dancesynth run, is a run of another
-    kind (e.g. an appearance model given where a pose model is expected) or was interrupted while saving.
+    kind (e.g. an appearance model given where a pose model is expected) or is incomplete. A checkpoint
+    replaced by a training that is still running while this reads it is followed to the new one.
     """
-    meta = load_meta(run_dir, expected_kind, tag)
-    path = Path(run_dir) / f"{tag}.safetensors"
-    if not path.is_file():
-        raise DancesynthError(f"{path} is missing; the run folder is incomplete, retrain or copy the whole folder.")
-    try:
-        state = load_file(str(path))
-        with safe_open(str(path), framework="pt") as f:
-            file_meta = f.metadata() or {}
-    except (SafetensorError, OSError) as e:
-        raise DancesynthError(f"{path} is not a readable safetensors file ({e}); retrain or copy the run again.") from e
+    run_dir = Path(run_dir)
+    while True:
+        meta = load_meta(run_dir, expected_kind)
+        path = _files(run_dir, meta)[0]
+        try:
+            state = load_file(str(path))
+            with safe_open(str(path), framework="pt") as f:
+                file_meta = f.metadata() or {}
+            break
+        except FileNotFoundError as e:
+            if load_meta(run_dir, expected_kind).get("save_id") == meta.get("save_id"):
+                raise DancesynthError(f"{path} is missing; the run folder is incomplete, retrain or copy the "
+                                      "whole folder.") from e
+        except (SafetensorError, OSError) as e:
+            raise DancesynthError(f"{path} is not a readable safetensors file ({e}); retrain or copy the run "
+                                  "again.") from e
     if file_meta.get("save_id") != meta.get("save_id"):
-        raise DancesynthError(f"{path} does not belong to {path.with_suffix('.json').name} (the run was stopped "
-                              "while saving); resume or retrain the run.")
+        raise DancesynthError(f"{path} does not belong to {run_dir / POINTER} (the run was stopped while saving); "
+                              "resume or retrain the run.")
     return state, meta
 
 
-def load_training_state(run_dir: str | os.PathLike, tag: str = "latest") -> dict[str, Any]:
-    """The ``training_state`` saved with checkpoint ``tag`` (optimizers, RNG, data position)."""
-    run_dir = Path(run_dir)
-    path = run_dir / f"{tag}.training.pt"
+def load_training_state(run_dir: str | os.PathLike, meta: dict[str, Any]) -> dict[str, Any]:
+    """The ``training_state`` saved with the checkpoint whose metadata is ``meta`` (optimizers, RNG, position)."""
+    path = _files(Path(run_dir), meta)[1]
     if not path.is_file():
         raise DancesynthError(f"{run_dir} has no training state ({path.name}); it cannot be resumed, "
                               "start a new run with another --out folder.")
     try:
         saved = torch.load(path, map_location="cpu", weights_only=True)
-    except (RuntimeError, OSError, EOFError) as e:
-        raise DancesynthError(f"{path} is unreadable ({e}); start a new run with another --out folder.") from e
-    meta_path = run_dir / f"{tag}.json"
-    if meta_path.is_file() and json.loads(meta_path.read_text()).get("save_id") != saved.get("save_id"):
-        raise DancesynthError(f"{path} does not belong to {meta_path.name} (the run was stopped while saving); "
+    except (RuntimeError, OSError, EOFError, ValueError, pickle.UnpicklingError) as e:
+        # weights_only refuses pickled code as UnpicklingError; random bytes raise any of the others.
+        raise DancesynthError(f"{path} is not a training state this program wrote ({type(e).__name__}); "
+                              "start a new run with another --out folder.") from e
+    if not isinstance(saved, dict) or not isinstance(saved.get("state"), dict):
+        raise DancesynthError(f"{path} is not a training state this program wrote (no state table); "
                               "start a new run with another --out folder.")
+    if saved.get("save_id") != meta.get("save_id"):
+        raise DancesynthError(f"{path} does not belong to {Path(run_dir) / POINTER} (the run was stopped while "
+                              "saving); start a new run with another --out folder.")
     return saved["state"]
 
 

@@ -24,8 +24,13 @@ from dancesynth.core.fileio import atomic_path
 # 1024-sample AAC frame would then last longer than a video frame, so the track could not end with the video.
 AAC_RATES = (44100, 48000)
 AAC_RATE = 44100
+# Every command decodes songs at this rate (stage 1 resamples to what its features need), so a song gets the same
+# dance whichever command makes it, and datasets store their songs at it.
+SONG_SAMPLE_RATE = 22050
 # RMS below this (full scale = 1) counts as silence.
 SILENCE_RMS = 1e-4
+# Float audio may overshoot full scale a little; samples beyond this are broken data, not loud music.
+MAX_SAMPLE = 100.0
 
 
 def _open_input(path: str | os.PathLike) -> av.container.InputContainer:
@@ -60,7 +65,11 @@ def decode_audio(path: str | os.PathLike, sr: int) -> np.ndarray:
             raise DancesynthError(f"The audio in {path} is corrupt ({e}); re-export or re-download the file.") from e
     if not chunks or sum(len(c) for c in chunks) == 0:
         raise DancesynthError(f"{path} contains no audio samples; choose a file that contains sound.")
-    return np.concatenate(chunks).astype(np.float32, copy=False)
+    samples = np.concatenate(chunks).astype(np.float32, copy=False)
+    if not np.isfinite(samples).all() or np.abs(samples).max() > MAX_SAMPLE:
+        raise DancesynthError(f"The audio in {path} has samples that are not finite or far beyond full scale; "
+                              "re-export it as ordinary 16-bit or normalised float audio.")
+    return samples
 
 
 def load_song(path: str | os.PathLike, sr: int, min_seconds: float = 2.0) -> np.ndarray:
@@ -119,7 +128,8 @@ def _decoded_frames(path: str | os.PathLike, limit: int | None = None) -> Iterat
                 if count == limit:
                     return
         except av.FFmpegError as e:
-            raise DancesynthError(f"The video {path} is corrupt after {count} frames ({e}); re-encode or re-download it.") from e
+            raise DancesynthError(f"The video {path} is corrupt after {count} frames ({e}); "
+                                  "re-encode or re-download it.") from e
         if count == 0:
             raise DancesynthError(f"{path} contains no video frames; choose another video.")
 

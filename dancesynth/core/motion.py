@@ -1,6 +1,10 @@
-"""Movement beats of a pose sequence: where the motion suddenly slows down or changes direction.
+"""Motion measures of a dance: joint speed, speed by beat phase, seed distance, movement beats and their chance rate.
 
-Two definitions are in use:
+Speeds are in the units of the positions per second: pixels per second of the canvas for a
+:class:`~dancesynth.core.skeleton.PoseSequence`'s ``xy``; pass ``unit_length=body_scale(seq)`` (the torso length
+in pixels) for torso lengths per second, a speed that compares dancers of different sizes.
+
+Two definitions of movement beats are in use:
 
 * Dancing to Music (Lee et al. 2019, Eq. 1-2): each joint's frame-to-frame motion is binned by its angle into
   a motion histogram ``D(t, theta)``; its frame difference ``D(t) - D(t - 1)`` is negative where the motion in a
@@ -8,15 +12,22 @@ Two definitions are in use:
   onset strength, and its peaks are kinematic beats (:func:`kinematic_offsets`, :func:`kinematic_beats`).
 * Bailando / EDGE: local minima of the smoothed mean joint speed (:func:`velocity_minimum_beats`).
 
-All functions take ``[T, J, 2]`` joint positions in any unit (pixels or model coordinates) and return frame
+Beat detectors take ``[T, J, 2]`` joint positions in any unit (pixels or model coordinates) and return frame
 indices; multiply by ``1 / fps`` for seconds.
 """
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.signal import find_peaks
+
+from dancesynth.core.skeleton import ROOT
+
+# A kinematic beat within this many pose frames of a music beat is "aligned": +-2 frames = +-133 ms at 15 fps.
+DEFAULT_TOLERANCE_FRAMES = 2
 
 
 def _check(xy: np.ndarray, fps: float) -> np.ndarray:
@@ -28,12 +39,61 @@ def _check(xy: np.ndarray, fps: float) -> np.ndarray:
     return xy
 
 
+def joint_speeds(xy: np.ndarray, fps: float, unit_length: float = 1.0) -> np.ndarray:
+    """``[T - 1, J]`` speed of each joint of ``[T, J, 2]`` positions from frame ``t`` to ``t + 1``, in lengths of
+    ``unit_length`` per second (default 1: xy's own unit per second, e.g. pixels per second)."""
+    xy = _check(xy, fps)
+    return np.linalg.norm(np.diff(xy, axis=0), axis=-1) * (fps / unit_length)
+
+
+def mean_speed(xy: np.ndarray, fps: float, unit_length: float = 1.0) -> float:
+    """Mean over frames and joints of :func:`joint_speeds`; 0 for fewer than two frames."""
+    speeds = joint_speeds(xy, fps, unit_length)
+    return float(speeds.mean()) if speeds.size else 0.0
+
+
+def speed_by_beat_phase(xy: np.ndarray, beat_frames: np.ndarray, fps: float, bins: int = 10,
+                        unit_length: float = 1.0) -> np.ndarray:
+    """``[bins]`` mean joint speed in each of ``bins`` equal parts of the intervals between consecutive music beats.
+
+    ``beat_frames``: increasing music beat positions in (fractional) pose frames, seconds x fps. The speed from
+    frame ``t`` to ``t + 1`` belongs to time ``t + 0.5``; part ``i`` holds the speeds whose phase (fraction of the
+    way from the previous beat to the next) lies in ``[i / bins, (i + 1) / bins)``. Speeds before the first or after
+    the last beat are left out; NaN where a part has no speed. Real dances are slowest in the first parts.
+    """
+    speed = joint_speeds(xy, fps, unit_length).mean(axis=1)
+    beats = np.asarray(beat_frames, dtype=np.float64).ravel()
+    t = np.arange(len(speed)) + 0.5
+    k = np.searchsorted(beats, t) - 1
+    inside = (k >= 0) & (k < len(beats) - 1)
+    start = beats[k[inside]]
+    phase = (t[inside] - start) / (beats[k[inside] + 1] - start)
+    part = np.minimum((phase * bins).astype(np.int64), bins - 1)
+    return np.array([speed[inside][part == i].mean() if (part == i).any() else np.nan for i in range(bins)])
+
+
+class DanceDistance(NamedTuple):
+    """Mean distance between the joints of two dances, in the unit of their positions (e.g. pixels)."""
+
+    joints: float  # all joints where they are on the canvas
+    body: float  # joints relative to the root (MidHip): the pose itself
+    root: float  # the root's position: where the dancer stands
+
+
+def dance_distance(a: np.ndarray, b: np.ndarray) -> DanceDistance:
+    """Mean per-joint, per-frame distance between two ``[T, 25, 2]`` dances over their common length."""
+    n = min(len(a), len(b))
+    a, b = np.asarray(a[:n], np.float64), np.asarray(b[:n], np.float64)
+    body = (a - a[:, ROOT:ROOT + 1]) - (b - b[:, ROOT:ROOT + 1])
+    return DanceDistance(float(np.linalg.norm(a - b, axis=-1).mean()), float(np.linalg.norm(body, axis=-1).mean()),
+                         float(np.linalg.norm(a[:, ROOT] - b[:, ROOT], axis=-1).mean()))
+
+
 def motion_histogram(xy: np.ndarray, fps: float, bins: int = 8) -> np.ndarray:
     """``D(t, theta)`` of Dancing to Music Eq. 1: ``[T, bins]`` summed joint speeds (units per second) of the
     motion from frame ``t - 1`` to ``t``, binned by motion angle into ``bins`` equal sectors. Row 0 is zero."""
-    xy = _check(xy, fps)
-    step = np.diff(xy, axis=0)
-    speed = np.linalg.norm(step, axis=-1) * fps
+    speed = joint_speeds(xy, fps)
+    step = np.diff(np.asarray(xy, dtype=np.float64), axis=0)
     sector = np.floor((np.arctan2(step[..., 1], step[..., 0]) + np.pi) / (2 * np.pi) * bins).astype(np.int64) % bins
     hist = np.zeros((len(xy), bins))
     rows = np.broadcast_to(np.arange(1, len(xy))[:, None], sector.shape)
@@ -74,15 +134,35 @@ def kinematic_beats(xy: np.ndarray, fps: float, threshold: float = 0.3, min_spac
 
 
 def velocity_minimum_beats(xy: np.ndarray, fps: float, smooth_sigma: float = 0.08) -> np.ndarray:
-    """Movement beats as Bailando and EDGE define them: frames ``[K]`` (int64) where the mean joint speed,
-    smoothed with a Gaussian of ``smooth_sigma`` seconds, has a strict local minimum.
-
-    The speed at frame ``t`` is the mean over joints of ``|xy[t + 1] - xy[t]|``.
-    """
-    xy = _check(xy, fps)
-    if len(xy) < 3:
+    """Movement beats as Bailando and EDGE define them: frames ``[K]`` (int64) where the mean joint speed from
+    frame ``t`` to ``t + 1``, smoothed with a Gaussian of ``smooth_sigma`` seconds, has a strict local minimum."""
+    if len(_check(xy, fps)) < 3:
         return np.zeros(0, np.int64)
-    speed = np.linalg.norm(np.diff(xy, axis=0), axis=-1).mean(axis=1)
+    speed = joint_speeds(xy, fps).mean(axis=1)
     smooth = gaussian_filter1d(speed, sigma=max(smooth_sigma * fps, 1e-3), mode="nearest")
     inner = np.flatnonzero((smooth[1:-1] < smooth[:-2]) & (smooth[1:-1] < smooth[2:])) + 1
     return inner.astype(np.int64)
+
+
+def beats_aligned(kinematic_frames: np.ndarray, music_frames: np.ndarray,
+                  tolerance_frames: float = DEFAULT_TOLERANCE_FRAMES) -> np.ndarray:
+    """``[K]`` bool per kinematic beat (pose frame): is some music beat (fractional pose frame, seconds x fps)
+    within ``tolerance_frames`` of it?"""
+    k = np.asarray(kinematic_frames, dtype=np.float64).ravel()
+    m = np.asarray(music_frames, dtype=np.float64).ravel()
+    if k.size == 0 or m.size == 0:
+        return np.zeros(k.size, bool)
+    return np.abs(k[:, None] - m[None, :]).min(axis=1) <= tolerance_frames
+
+
+def chance_hit_rate(kinematic_frames: np.ndarray, music_frames: np.ndarray, frames: int, rng: np.random.Generator,
+                    shifts: int = 500, tolerance_frames: float = DEFAULT_TOLERANCE_FRAMES) -> float:
+    """The beat hit rate movement blind to the music would score: the mean share of aligned kinematic beats
+    (:func:`beats_aligned`) after shifting them circularly within the ``frames``-frame dance by ``shifts`` random
+    offsets (same count and rhythm, random phase against the beat grid). NaN without kinematic beats."""
+    kin = np.asarray(kinematic_frames, dtype=np.int64).ravel()
+    if kin.size == 0:
+        return float("nan")
+    offsets = rng.integers(0, frames, shifts)
+    return float(np.mean([beats_aligned((kin + s) % frames, music_frames, tolerance_frames).mean()
+                          for s in offsets]))

@@ -5,12 +5,12 @@ from __future__ import annotations
 import json
 import os
 import re
-import shutil
 from pathlib import Path
 
 import numpy as np
 
 from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import atomic_path
 from dancesynth.core.skeleton import COCO18_TO_BODY25, NUM_JOINTS, PoseSequence, from_partial
 
 _FRAME_NUMBER = re.compile(r"_(\d+)_keypoints\.json$")
@@ -30,11 +30,7 @@ def save_openpose_folder(seq: PoseSequence, folder: str | os.PathLike, prefix: s
     does when it sees nobody. The files are written into a temporary sibling folder that is renamed when complete.
     """
     folder = Path(folder)
-    if not folder.parent.is_dir():
-        raise DancesynthError(f"The folder {folder.parent} does not exist; create it or choose another output path.")
-    tmp = folder.with_name(folder.name + ".part")
-    shutil.rmtree(tmp, ignore_errors=True)
-    try:
+    with atomic_path(folder, folder=True) as tmp:
         tmp.mkdir()
         for i, kp in enumerate(seq.keypoints):
             people = []
@@ -43,13 +39,6 @@ def save_openpose_folder(seq: PoseSequence, folder: str | os.PathLike, prefix: s
                 people.append({"person_id": [-1], "pose_keypoints_2d": values, "face_keypoints_2d": [],
                                "hand_left_keypoints_2d": [], "hand_right_keypoints_2d": []})
             (tmp / frame_file_name(prefix, i)).write_text(json.dumps({"version": 1.3, "people": people}))
-        if folder.exists():
-            shutil.rmtree(folder)
-        os.replace(tmp, folder)
-    except OSError as e:
-        raise DancesynthError(f"Could not write {folder} ({e.strerror or e}); check the path, permissions and free disk space.") from e
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
     return folder
 
 

@@ -1,7 +1,9 @@
-"""Figures of the stage-1 report (matplotlib, headless Agg backend, written as PNG atomically)."""
+"""Figures (matplotlib, headless Agg backend, written as PNG atomically): training curves of run folders and
+the stage-1 report's figures."""
 
 from __future__ import annotations
 
+import csv
 import os
 
 import matplotlib
@@ -23,6 +25,36 @@ def _robust_ylim(ax: plt.Axes, values: np.ndarray) -> None:
     """Scale the y axis to the 99th percentile, so one start-up transient does not flatten the rest."""
     top = float(np.percentile(values, 99)) if len(values) else 0.0
     ax.set_ylim(0.0, 1.15 * top if top > 0 else 1.0)
+
+
+# Columns of a metrics table that are positions or bookkeeping, not curves.
+NOT_CURVES = ("step", "epoch", "seconds")
+
+
+def plot_metrics(csv_paths: list[str | os.PathLike], path: str | os.PathLike) -> None:
+    """One panel per numeric column of the given metrics CSVs (each has a ``step`` column: the x axis).
+
+    Empty cells (a column a training phase does not log) are gaps. Nothing is drawn before the first row.
+    """
+    curves: list[tuple[str, list[float], list[float]]] = []
+    for csv_path in csv_paths:
+        if not os.path.isfile(csv_path):
+            continue
+        with open(csv_path, newline="") as f:
+            rows = list(csv.DictReader(f))
+        keys = [k for k in (rows[0] if rows else {}) if k not in NOT_CURVES]
+        steps = [float(r["step"]) for r in rows]
+        curves += [(k, steps, [float(r[k]) if r.get(k) else np.nan for r in rows]) for k in keys]
+    if not curves:
+        return
+    fig, axes = plt.subplots(len(curves), 1, figsize=(6, 2.2 * len(curves)), squeeze=False, sharex=True)
+    for ax, (key, steps, values) in zip(axes[:, 0], curves):
+        ax.plot(steps, values, lw=0.9)
+        ax.set_ylabel(key, fontsize=8)
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("step")
+    fig.tight_layout()
+    _save(fig, path)
 
 
 def plot_fid_over_time(curves: dict[str, list[float]], window_seconds: float, path: str | os.PathLike) -> None:

@@ -8,12 +8,14 @@ second. A joint whose confidence is 0 is absent; its x, y are meaningless.
 from __future__ import annotations
 
 import os
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import atomic_path
 
 BODY25_JOINTS: tuple[str, ...] = (
     "Nose", "Neck", "RShoulder", "RElbow", "RWrist", "LShoulder", "LElbow", "LWrist",
@@ -105,16 +107,9 @@ class PoseSequence:
 
     def save(self, path: str | os.PathLike) -> None:
         """Write an ``.npz`` (keys: keypoints, fps, width, height, layout) atomically."""
-        path = Path(path)
-        tmp = path.with_name(path.name + ".part")
-        try:
-            with open(tmp, "wb") as f:
-                np.savez(f, keypoints=self.keypoints, fps=np.float64(self.fps),
-                         width=np.int64(self.width), height=np.int64(self.height), layout=np.str_("BODY_25"))
-            os.replace(tmp, path)
-        except OSError as e:
-            tmp.unlink(missing_ok=True)
-            raise DancesynthError(f"Could not write {path} ({e.strerror}); check the folder exists and the disk has space.") from e
+        with atomic_path(path) as tmp, open(tmp, "wb") as f:
+            np.savez(f, keypoints=self.keypoints, fps=np.float64(self.fps),
+                     width=np.int64(self.width), height=np.int64(self.height), layout=np.str_("BODY_25"))
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "PoseSequence":
@@ -127,7 +122,8 @@ class PoseSequence:
                 if str(z["layout"]) != "BODY_25":
                     raise KeyError("layout")
                 return cls(z["keypoints"], float(z["fps"]), int(z["width"]), int(z["height"]))
-        except (OSError, KeyError, ValueError, TypeError) as e:  # TypeError: a plain .npy array is no archive
+        # TypeError: a plain .npy array is no archive; EOFError: an empty file; BadZipFile: a truncated archive
+        except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as e:
             raise DancesynthError(
                 f"{path} is not a dancesynth pose file (.npz with BODY_25 keypoints, fps, width, height); "
                 "create one with `dancesynth extract-poses` or `dancesynth generate`.") from e

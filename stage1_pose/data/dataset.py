@@ -6,7 +6,7 @@ Layout of a dataset folder ``DIR``::
     DIR/audio/<id>.wav           the clip's song, mono
     DIR/poses/<id>.npz           its dance, a PoseSequence file (BODY_25 pixels + confidence, fps, canvas)
     DIR/beats/<id>.json          {"beats": [seconds], "downbeats": [seconds], "tempo": bpm, "source": "exact"|"tracked"}
-    DIR/features/<kind>/<id>.npy cached audio features [T, D] (one row per pose frame), made on first use
+    DIR/features/<kind>/<id>.npy cached music features [T, D] (one row per pose frame), made on first use
     DIR/features/<kind>/stats.npz per-column mean and std over the train split
 
 Each manifest clip is ``{"id", "song", "style", "split", "audio", "poses", "beats"}`` with paths relative to
@@ -24,16 +24,28 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from tqdm import tqdm
 
-from stage1_pose import audio as audio_features
-# The layout helpers are part of this module's interface too (generators and importers use layout directly).
-from stage1_pose.data.layout import (MANIFEST, SPLITS, Clip, Manifest, clip_paths, create_layout, read_manifest,
-                                     split_songs, write_beats, write_manifest)
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
-from stage1_pose.models.base import Batch
+from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence, interpolate_missing, normalize
+from stage1_pose.beats import beats_on_frames
+
+# The layout helpers are part of this module's interface too (generators and importers use layout directly).
+from stage1_pose.data.layout import (
+    MANIFEST,
+    SPLITS,
+    Clip,
+    Manifest,
+    clip_paths,
+    create_layout,
+    read_manifest,
+    split_songs,
+    write_beats,
+    write_manifest,
+)
+from stage1_pose.features import check_kind, extract_features
+from stage1_pose.models.base import Batch
 
 __all__ = ["MANIFEST", "SPLITS", "Clip", "DanceDataset", "FeatureStats", "Manifest", "WindowDataset", "clip_paths",
            "collate", "create_layout", "load_feature_stats", "read_manifest", "split_songs", "write_beats",
@@ -100,17 +112,15 @@ class DanceDataset:
         return self.root / "features" / kind / f"{clip.id}.npy"
 
     def ensure_features(self, kind: str, clips: Sequence[Clip] | None = None, progress: bool = True) -> None:
-        """Compute and cache the ``kind`` features (:func:`stage1_pose.audio.extract_features`) of every clip
+        """Compute and cache the ``kind`` features (:func:`stage1_pose.features.extract_features`) of every clip
         (default: all) that has none yet, with a progress bar."""
-        if kind not in audio_features.FEATURE_KINDS:
-            raise DancesynthError(f"Unknown audio feature kind {kind!r}; "
-                                  f"choose one of {', '.join(audio_features.FEATURE_KINDS)}.")
+        check_kind(kind)
         todo = [c for c in (self._clips if clips is None else clips) if not self.feature_path(c, kind).is_file()]
         if not todo:
             return
         (self.root / "features" / kind).mkdir(parents=True, exist_ok=True)
-        for clip in tqdm(todo, desc=f"features {kind}", unit="clip", disable=not progress):
-            feats = audio_features.extract_features(self.load_audio(clip), self.sample_rate, kind, self.fps)
+        for clip in track(todo, desc=f"features {kind}", unit="clip", disable=not progress):
+            feats = extract_features(self.load_audio(clip), self.sample_rate, kind, self.fps)
             with atomic_path(self.feature_path(clip, kind)) as tmp:
                 np.save(tmp, feats)
 
@@ -175,7 +185,8 @@ def load_feature_stats(path: str | os.PathLike) -> FeatureStats:
 class WindowDataset(torch.utils.data.Dataset):
     """Fixed-length (music, dance) training pairs cut from the clips of one split.
 
-    Item ``i`` is a dict: ``audio`` ``[window_frames, D]`` float32 standardised features of ``feature_kind``,
+    Item ``i`` is a dict: ``features`` ``[window_frames, D]`` float32 standardised features of ``feature_kind``,
+    ``beats`` ``[window_frames]`` bool (the frames nearest to the beats of the clip's beats file),
     ``poses`` ``[window_frames, 25, 2]`` float32 model coordinates (:func:`dancesynth.core.skeleton.normalize`
     per clip), ``style`` int64 scalar, plus ``clip`` (id) and ``start`` (first pose frame). Windows start
     every ``stride_frames`` frames; clips shorter than a window give none. Features are computed and cached on
@@ -185,14 +196,16 @@ class WindowDataset(torch.utils.data.Dataset):
     def __init__(self, root: str | os.PathLike, split: str, feature_kind: str, window_frames: int,
                  stride_frames: int | None = None, standardize: bool = True, progress: bool = True) -> None:
         if window_frames < 1 or (stride_frames is not None and stride_frames < 1):
-            raise DancesynthError(f"Window and stride must be at least 1 frame, got {window_frames} and {stride_frames}.")
+            raise DancesynthError(f"Window and stride must be at least 1 frame, got {window_frames} and "
+                                  f"{stride_frames}.")
         self.dataset = DanceDataset(root)
         self.split, self.feature_kind, self.window_frames = split, feature_kind, int(window_frames)
         self.stride_frames = int(stride_frames or window_frames)
         clips = self.dataset.clips(split)
         self.dataset.ensure_features(feature_kind, clips, progress)
         self.stats = self.dataset.feature_stats(feature_kind, progress) if standardize else None
-        self._audio: list[np.ndarray] = []
+        self._features: list[np.ndarray] = []
+        self._beats: list[np.ndarray] = []
         self._poses: list[np.ndarray] = []
         self._styles: list[int] = []
         self._ids: list[str] = []
@@ -202,7 +215,8 @@ class WindowDataset(torch.utils.data.Dataset):
             frames = min(len(feats), len(poses))
             k = len(self._ids)
             self._index += [(k, s) for s in range(0, frames - self.window_frames + 1, self.stride_frames)]
-            self._audio.append(feats)
+            self._features.append(feats)
+            self._beats.append(beats_on_frames(self.dataset.load_beats(clip)["beats"], frames, self.dataset.fps))
             self._poses.append(poses)
             self._styles.append(self.dataset.style_index(clip))
             self._ids.append(clip.id)
@@ -218,15 +232,18 @@ class WindowDataset(torch.utils.data.Dataset):
     def __getitem__(self, i: int) -> dict:
         k, start = self._index[i]
         stop = start + self.window_frames
-        feats = np.array(self._audio[k][start:stop], np.float32)  # a copy: the features may be a read-only memory map
+        # A copy: the features may be a read-only memory map.
+        feats = np.array(self._features[k][start:stop], np.float32)
         if self.stats is not None:
             feats = self.stats.standardize(feats)
-        return {"audio": torch.from_numpy(feats), "poses": torch.from_numpy(self._poses[k][start:stop].copy()),
+        return {"features": torch.from_numpy(feats), "beats": torch.from_numpy(self._beats[k][start:stop].copy()),
+                "poses": torch.from_numpy(self._poses[k][start:stop].copy()),
                 "style": torch.tensor(self._styles[k], dtype=torch.int64), "clip": self._ids[k], "start": start}
 
 
 def collate(items: Sequence[dict]) -> Batch:
     """Stack :class:`WindowDataset` items into a :class:`stage1_pose.models.base.Batch`
-    (``audio`` ``[B, T, D]``, ``poses`` ``[B, T, 25, 2]``, ``style`` ``[B]``)."""
-    return Batch(audio=torch.stack([it["audio"] for it in items]), poses=torch.stack([it["poses"] for it in items]),
-                 style=torch.stack([it["style"] for it in items]))
+    (``features`` ``[B, T, D]``, ``beats`` ``[B, T]``, ``poses`` ``[B, T, 25, 2]``, ``style`` ``[B]``)."""
+    return Batch(features=torch.stack([it["features"] for it in items]),
+                 beats=torch.stack([it["beats"] for it in items]),
+                 poses=torch.stack([it["poses"] for it in items]), style=torch.stack([it["style"] for it in items]))

@@ -1,9 +1,9 @@
 """Add real recordings to a dataset folder: OpenPose JSON folders and AIST++ 2D keypoints, each with its song.
 
-Both importers resample the dance to the dataset's 15 fps, decode the song to 22050 Hz mono, trim both to
-their common length, track the song's beats (source ``tracked``) and append one clip to the manifest,
-creating the dataset folder when it does not exist. A song is identified by a hash of its samples, so
-several dances to one song share its split.
+Both importers resample the dance to the dataset layout's ``POSE_FPS`` (15 fps), decode the song to its
+``SAMPLE_RATE`` (22050 Hz) mono, trim both to their common length, track the song's beats (source ``tracked``)
+and append one clip to the manifest, creating the dataset folder when it does not exist. A song is identified
+by a hash of its samples, so several dances to one song share its split.
 
 AIST++ publishes its 2D keypoints as Python pickles, which this project never unpickles (a pickle can run
 code). Convert each file once, in a Python session you trust, to a NumPy array::
@@ -25,14 +25,25 @@ from pathlib import Path
 import numpy as np
 import soundfile
 
-from stage1_pose.audio import beat_times, num_pose_frames, tempo
-from stage1_pose.data.layout import (MANIFEST, SPLITS, Clip, clip_paths, create_layout, read_manifest,
-                                     split_for_new_song, write_beats, write_manifest)
-from stage1_pose.data.synth_dance import FPS
-from stage1_pose.data.synth_music import BEATS_PER_BAR, SAMPLE_RATE
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
 from dancesynth.core.skeleton import COCO17_TO_BODY25, PoseSequence, from_partial, resample
+from stage1_pose.beats import beat_times, tempo
+from stage1_pose.data.layout import (
+    MANIFEST,
+    POSE_FPS,
+    SAMPLE_RATE,
+    SPLITS,
+    Clip,
+    clip_paths,
+    create_layout,
+    read_manifest,
+    split_for_new_song,
+    write_beats,
+    write_manifest,
+)
+from stage1_pose.data.synth_music import BEATS_PER_BAR
+from stage1_pose.features import num_pose_frames
 
 # AIST++ genre codes (the "g.." part of a sequence name) and the dance genres they stand for.
 AIST_GENRES = {"gBR": "break", "gPO": "pop", "gLO": "lock", "gMH": "middle_hiphop", "gLH": "la_hiphop",
@@ -71,22 +82,22 @@ def add_clip_samples(out_dir: str | os.PathLike, poses: PoseSequence, samples: n
     _check_split(split)
     if (root / MANIFEST).exists():
         manifest = read_manifest(root)
-        if manifest.fps != FPS or manifest.sample_rate != SAMPLE_RATE:
+        if manifest.fps != POSE_FPS or manifest.sample_rate != SAMPLE_RATE:
             raise DancesynthError(f"{root} stores {manifest.fps:g} fps / {manifest.sample_rate} Hz clips, but "
-                                  f"importers write {FPS:g} fps / {SAMPLE_RATE} Hz; import into a new folder.")
+                                  f"importers write {POSE_FPS:g} fps / {SAMPLE_RATE} Hz; import into a new folder.")
         styles, clips = list(manifest.styles), list(manifest.clips)
     else:
         create_layout(root)
         styles, clips = [], []
     if any(c.id == clip_id for c in clips):
         raise DancesynthError(f"{root} already has a clip {clip_id!r}; choose another clip id.")
-    poses = resample(poses, FPS) if poses.fps != FPS else poses
-    frames = min(len(poses), num_pose_frames(len(samples), SAMPLE_RATE, FPS))
-    if frames < FPS:
+    poses = resample(poses, POSE_FPS) if poses.fps != POSE_FPS else poses
+    frames = min(len(poses), num_pose_frames(len(samples), SAMPLE_RATE, POSE_FPS))
+    if frames < POSE_FPS:
         raise DancesynthError(f"The dance {clip_id!r} and its song overlap for less than a second; "
                               "check that they belong together.")
     poses = poses.slice_frames(0, frames)
-    samples = samples[:int(round(frames / FPS * SAMPLE_RATE))]
+    samples = samples[:int(round(frames / POSE_FPS * SAMPLE_RATE))]
     song = song or song_id(samples)
     same_song = [c.split for c in clips if c.song == song]
     split = split or (same_song[0] if same_song else split_for_new_song(song))
@@ -98,7 +109,7 @@ def add_clip_samples(out_dir: str | os.PathLike, poses: PoseSequence, samples: n
     # A tracker gives no bar positions; every fourth beat from the first is the usual 4/4 guess.
     write_beats(root / paths["beats"], beats, beats[::BEATS_PER_BAR], tempo(samples, SAMPLE_RATE), "tracked")
     clip = Clip(id=clip_id, song=song, style=style, split=split, **paths)
-    write_manifest(root, FPS, SAMPLE_RATE, styles + ([style] if style not in styles else []), clips + [clip])
+    write_manifest(root, POSE_FPS, SAMPLE_RATE, styles + ([style] if style not in styles else []), clips + [clip])
     return clip
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
@@ -17,13 +18,21 @@ import numpy as np
 
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
+from dancesynth.core.media import SONG_SAMPLE_RATE
 
+# Pose frames per second and WAV sample rate (Hz) of the datasets dancesynth writes (built-in and imported): songs
+# are stored as every command decodes them, so dataset and user songs give the same features.
+POSE_FPS = 15.0
+SAMPLE_RATE = SONG_SAMPLE_RATE
 MANIFEST = "manifest.json"
+FEATURES = "features"
 MANIFEST_VERSION = 1
 SPLITS: tuple[str, ...] = ("train", "val", "test")
 # Fractions of songs in the val and test splits; the rest is train.
 HELD_OUT_FRACTION = 0.1
 _CLIP_KEYS = ("id", "song", "style", "split", "audio", "poses", "beats")
+# Clip ids name files (``features/<kind>/<id>.npy``), so they hold no path separators; importers write only these.
+_CLIP_ID = re.compile(r"[A-Za-z0-9_.-]+")
 
 
 @dataclass(frozen=True)
@@ -111,9 +120,16 @@ class Manifest:
 
 def read_manifest(root: str | os.PathLike) -> Manifest:
     """Read and validate ``root/manifest.json``; a missing folder or file or a malformed manifest raises a
-    :class:`DancesynthError` saying how to make one."""
+    :class:`DancesynthError` saying how to make one.
+
+    Every clip's files must resolve (symbolic links followed) inside ``root`` and its id must be a plain file
+    name, so a downloaded dataset cannot make dancesynth read or write outside its folder.
+    """
     root = Path(root)
     path = root / MANIFEST
+    if root.exists() and not root.is_dir():
+        raise DancesynthError(f"{root} is a file, not a dataset folder; pass the folder made by "
+                              "`dancesynth make-dataset --out DIR`.")
     if not root.is_dir():
         raise DancesynthError(f"The dataset folder {root} does not exist; "
                               "create one with `dancesynth make-dataset --out DIR`.")
@@ -131,8 +147,21 @@ def read_manifest(root: str | os.PathLike) -> Manifest:
     except (ValueError, KeyError, TypeError) as e:
         raise DancesynthError(f"{path} is not a valid dataset manifest ({type(e).__name__}: {e}); "
                               "re-create the dataset with `dancesynth make-dataset`.") from e
+    inside = root.resolve()
+    if not (inside / FEATURES).resolve().is_relative_to(inside):
+        raise DancesynthError(f"{root / FEATURES} links outside the dataset folder; delete that link so the "
+                              "feature cache is written inside the dataset.")
     for c in clips:
         if c.split not in SPLITS or c.style not in styles:
             raise DancesynthError(f"Clip {c.id} in {path} has split {c.split!r} / style {c.style!r}, not one of "
                                   f"{SPLITS} / {styles}; fix the manifest or re-create the dataset.")
+        if not _CLIP_ID.fullmatch(c.id) or not c.id.strip("."):
+            raise DancesynthError(f"Clip id {c.id!r} in {path} is not a plain name (letters, digits and _.- only); "
+                                  "fix the manifest or re-create the dataset.")
+        for key in ("audio", "poses", "beats"):
+            rel = getattr(c, key)
+            if Path(rel).is_absolute() or not (inside / rel).resolve().is_relative_to(inside):
+                raise DancesynthError(f"Clip {c.id!r} in {path} has its {key} at {rel!r}, outside the dataset folder "
+                                      "(links included); a dataset may only use its own files, so fix the manifest "
+                                      "or re-create the dataset.")
     return manifest

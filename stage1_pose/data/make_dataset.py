@@ -12,16 +12,25 @@ from pathlib import Path
 
 import numpy as np
 import soundfile
-from tqdm import tqdm
 
-from stage1_pose.audio import num_pose_frames
-from stage1_pose.data.layout import (MANIFEST, Clip, clip_paths, create_layout, split_songs, write_beats,
-                                     write_manifest)
-from stage1_pose.data.styles import STYLES
-from stage1_pose.data.synth_dance import FPS, synthesize_dance
-from stage1_pose.data.synth_music import SAMPLE_RATE, synthesize_song
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
+from dancesynth.core.progress import track
+from stage1_pose.data.layout import (
+    MANIFEST,
+    POSE_FPS,
+    SAMPLE_RATE,
+    Clip,
+    clip_paths,
+    create_layout,
+    split_songs,
+    write_beats,
+    write_manifest,
+)
+from stage1_pose.data.styles import STYLES
+from stage1_pose.data.synth_dance import synthesize_dance
+from stage1_pose.data.synth_music import synthesize_song
+from stage1_pose.features import num_pose_frames
 
 # Shortest clip: a few beats of the slowest style, and enough frames for the audio features' analysis windows.
 MIN_SECONDS = 2.0
@@ -34,7 +43,7 @@ def _make_clip(job: tuple[str, int, str, float, np.random.SeedSequence]) -> Clip
     clip_id = f"{style_name}_{index:05d}"
     paths = clip_paths(clip_id)
     song = synthesize_song(style, seconds, rng)
-    frames = num_pose_frames(len(song.samples), song.sample_rate, FPS)
+    frames = num_pose_frames(len(song.samples), song.sample_rate, POSE_FPS)
     dance = synthesize_dance(style, song.beats, frames, rng)
     with atomic_path(Path(root) / paths["audio"]) as tmp:
         soundfile.write(tmp, song.samples, song.sample_rate, subtype="PCM_16")
@@ -64,7 +73,7 @@ def make_dataset(out_dir: str | os.PathLike, clips: int = 100, seconds: float = 
     names = list(STYLES)
     seeds = np.random.SeedSequence(seed).spawn(clips + 1)
     jobs = [(str(root), i, names[i % len(names)], float(seconds), seeds[i]) for i in range(clips)]
-    bar = tqdm(total=clips, desc="make-dataset", unit="clip", disable=not progress)
+    bar = track(total=clips, desc="make-dataset", unit="clip", disable=not progress)
     if workers == 1 or clips == 1:
         made = []
         for job in jobs:
@@ -82,4 +91,4 @@ def make_dataset(out_dir: str | os.PathLike, clips: int = 100, seconds: float = 
     by_style = {name: [c.song for c in made if c.style == name] for name in names}
     split = split_songs(by_style, np.random.default_rng(seeds[-1]))
     final = [Clip(**{**c.__dict__, "split": split[c.song]}) for c in made]
-    return write_manifest(root, FPS, SAMPLE_RATE, names, final)
+    return write_manifest(root, POSE_FPS, SAMPLE_RATE, names, final)

@@ -3,8 +3,9 @@
 A dance is a sequence of moves from the style's vocabulary (:data:`MOVES`). A move is a few key poses, one per
 segment of 1, 2 or 4 beats; each key pose is reached exactly on a music beat by a smooth (C2) trajectory that
 speeds up and slows down within a fraction of a second (after a hold for hit-style moves), so the body stops
-or turns sharply on those beats and glides through the others. Joint angles and root motion are then turned into pixel positions with
-constant bone lengths; the root height keeps the lowest foot point on the floor (or above it in a jump).
+or turns sharply on those beats and glides through the others. Joint angles and root motion are then turned into
+pixel positions with constant bone lengths; the root height keeps the lowest foot point on the floor (or above it
+in a jump).
 
 Angles are in radians in the image plane. Arm and leg angles are measured from straight down, positive away
 from the body (an arm at pi/2 points sideways, at pi straight up); elbow angles add to the arm angle; knee
@@ -18,10 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from stage1_pose.data.styles import Style
 from dancesynth.core.skeleton import JOINT_INDEX, NUM_JOINTS, PoseSequence
+from stage1_pose.data.layout import POSE_FPS
+from stage1_pose.data.styles import Style
 
-FPS = 15.0
 WIDTH, HEIGHT = 1280, 720
 DOFS: tuple[str, ...] = ("lean", "head", "pelvis", "r_arm", "r_elbow", "l_arm", "l_elbow", "r_leg", "r_knee",
                          "l_leg", "l_knee", "r_foot", "l_foot", "shift", "jump")
@@ -59,7 +60,8 @@ MOVES: dict[str, tuple[dict[str, float], ...]] = {
               {"l_leg": 0.45, "l_foot": 1.0, **_both(arm=1.5)}, {}),
     "cambre": ({"lean": 0.3, "head": 0.2, "l_arm": 2.8, "r_arm": 0.6},
                {"lean": -0.3, "head": -0.2, "r_arm": 2.8, "l_arm": 0.6}, {}),
-    "arm_wave": ({**_both(arm=1.6), "r_elbow": 0.5, "l_elbow": -0.5}, {**_both(arm=1.6), "r_elbow": -0.5, "l_elbow": 0.5},
+    "arm_wave": ({**_both(arm=1.6), "r_elbow": 0.5, "l_elbow": -0.5},
+                 {**_both(arm=1.6), "r_elbow": -0.5, "l_elbow": 0.5},
                  {**_both(arm=1.6), "r_elbow": 0.5, "l_elbow": -0.5}, {}),
     "bras_ouverts": (_both(arm=1.3, elbow=-0.1), {**_both(arm=2.0, foot=0.5), "head": 0.1}, {}),
     # hip-hop: knee bounces, arm hits, points and steps
@@ -121,7 +123,8 @@ def random_body(rng: np.random.Generator) -> Body:
     """A body 330-470 px tall with each segment length within +-8 % of the average proportion."""
     height = float(rng.uniform(330, 470))
     limb = float(rng.uniform(0.95, 1.05))  # long- or short-limbed
-    sizes = {k: height * v * float(rng.uniform(0.92, 1.08)) * (limb if k in ("upper_arm", "forearm", "thigh", "shin") else 1)
+    limbs = ("upper_arm", "forearm", "thigh", "shin")
+    sizes = {k: height * v * float(rng.uniform(0.92, 1.08)) * (limb if k in limbs else 1)
              for k, v in _PROPORTIONS.items()}
     return Body(height=height, **sizes)
 
@@ -184,7 +187,7 @@ def _segment_profile(u: np.ndarray, seconds: np.ndarray, ramp: float) -> np.ndar
 
 
 def angle_trajectories(style: Style, times: np.ndarray, poses: np.ndarray, beats: np.ndarray,
-                       num_frames: int, fps: float = FPS) -> np.ndarray:
+                       num_frames: int, fps: float = POSE_FPS) -> np.ndarray:
     """DOF values at each pose frame, ``[num_frames, len(DOFS)]``.
 
     Between key poses: a hold for ``style.hit_fraction`` of the segment, then :func:`_segment_profile` with
@@ -277,7 +280,7 @@ def _turn(v: np.ndarray, angle: np.ndarray) -> np.ndarray:
 
 
 def synthesize_dance(style: Style, beats: np.ndarray, num_frames: int, rng: np.random.Generator,
-                     fps: float = FPS) -> PoseSequence:
+                     fps: float = POSE_FPS) -> PoseSequence:
     """A random ``num_frames``-frame dance in ``style`` to beats at ``beats`` seconds, on a 1280x720 canvas at
     ``fps`` with a random body, position and floor height; every joint has confidence 1."""
     body = random_body(rng)

@@ -13,9 +13,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
+from stage1_pose.data.layout import SAMPLE_RATE
 from stage1_pose.data.styles import Style
 
-SAMPLE_RATE = 22050
 BEATS_PER_BAR = 4
 # Peak level of the finished mix (full scale = 1), headroom against clipping after any resampling.
 PEAK = 0.89
@@ -196,23 +196,25 @@ def synthesize_song(style: Style, seconds: float, rng: np.random.Generator) -> S
         midis = key + 24 + scale[degrees % 7] + 12 * (degrees // 7)
         chord_beats = beats[(beats >= start - 1e-9) & (beats < start + chord_len - 1e-9)]
         if style.pad == "bright":  # short stabs on the off-beats, an octave above the chord
-            stab = note(("stab", c % len(progression)), lambda: _chord(midis + 12, period * 0.45, style.pad, rng))
+            stab = note(("stab", c % len(progression)),
+                        lambda midis=midis: _chord(midis + 12, period * 0.45, style.pad, rng))
             for b in chord_beats:
                 mix.add(b + period / 2, stab)
         else:
-            mix.add(start, note(("chord", c % len(progression)), lambda: _chord(midis, chord_len, style.pad, rng)))
+            mix.add(start, note(("chord", c % len(progression)),
+                                lambda midis=midis: _chord(midis, chord_len, style.pad, rng)))
         bass_midi = key + scale[root_degree % 7]
         for b in chord_beats:
             octave = 12 if rng.random() < 0.15 else 0
             midi = bass_midi + octave
-            mix.add(b, note(("bass", midi), lambda: _bass_note(midi, period * 0.95, style.bass)), 0.5)
+            mix.add(b, note(("bass", midi), lambda midi=midi: _bass_note(midi, period * 0.95, style.bass)), 0.5)
         degree = int(rng.choice(degrees))
         for m_start in np.arange(start, min(start + chord_len, seconds), melody_step):
             if rng.random() < 0.2:  # rests make the phrasing vary from song to song
                 continue
             degree = int(np.clip(degree + rng.choice([-2, -1, -1, 0, 1, 1, 2]), 0, 11))
             midi = key + 36 + scale[degree % 7] + 12 * (degree // 7)
-            mix.add(m_start, note(("lead", midi), lambda: _lead(midi, melody_step * 0.95, style.lead)))
+            mix.add(m_start, note(("lead", midi), lambda midi=midi: _lead(midi, melody_step * 0.95, style.lead)))
 
     y = mix.out
     y *= PEAK / max(float(np.max(np.abs(y))), 1e-9)

@@ -1,8 +1,10 @@
 """The contract between the shared stage-1 trainer and each music-to-pose method.
 
 Tensors crossing it:
-  * ``audio``: ``[B, T, D]`` float32 audio features of the method's ``feature_kind``, one row per pose frame
-    (for ``waveform``, D = samples per pose frame).
+  * ``features``: ``[B, T, D]`` float32 music features of the method's ``feature_kind``, one row per pose frame
+    (for ``waveform``, D = samples per pose frame), standardised with the training split's statistics.
+  * ``beats``: ``[B, T]`` bool, True on the pose frames nearest to the song's beats
+    (:func:`stage1_pose.beats.beats_on_frames`).
   * ``poses``: ``[B, T, 25, 2]`` float32 model coordinates from :func:`dancesynth.core.skeleton.normalize`.
   * ``style``: ``[B]`` int64 style label index.
 """
@@ -21,12 +23,13 @@ from torch import nn
 class Batch:
     """One training batch (see module docstring for shapes)."""
 
-    audio: torch.Tensor
+    features: torch.Tensor
+    beats: torch.Tensor
     poses: torch.Tensor
     style: torch.Tensor
 
     def to(self, device: torch.device) -> "Batch":
-        return Batch(self.audio.to(device), self.poses.to(device), self.style.to(device))
+        return Batch(self.features.to(device), self.beats.to(device), self.poses.to(device), self.style.to(device))
 
 
 class Stage1Method(nn.Module, abc.ABC):
@@ -40,9 +43,6 @@ class Stage1Method(nn.Module, abc.ABC):
 
     method_name: ClassVar[str]
     feature_kind: ClassVar[str]
-    # Methods that align their dance to the song's beats take ``beat_frames`` in :meth:`generate`: one array
-    # per song of beat positions in fractional pose frames (seconds x fps), from the beat tracker.
-    uses_beats: ClassVar[bool] = False
 
     def __init__(self, config: Any) -> None:
         super().__init__()
@@ -59,8 +59,10 @@ class Stage1Method(nn.Module, abc.ABC):
         """One update (calling :meth:`optimize` for every optimizer it steps); returns scalars to log."""
 
     @abc.abstractmethod
-    def generate(self, audio: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
-        """``[B, T, D]`` audio features -> ``[B, T, 25, 2]`` model-coordinate poses, for any T."""
+    def generate(self, features: torch.Tensor, beats: torch.Tensor,
+                 generator: torch.Generator | None = None) -> torch.Tensor:
+        """``[B, T, D]`` features and ``[B, T]`` beat flags -> ``[B, T, 25, 2]`` model-coordinate poses, for any T;
+        stochastic methods draw their noise from ``generator``."""
 
     def prepare_inference(self, precision: str = "fp32") -> None:
         """Called once after loading weights, before generating: a method may precompute or quantise weights

@@ -9,7 +9,7 @@ two consecutive pairs stacked on the channel axis. H and W must be divisible by 
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass, replace
 
 import torch
 import torch.nn.functional as F
@@ -21,7 +21,7 @@ LABEL_CHANNELS = 3
 IMAGE_CHANNELS = 3
 
 
-@dataclass
+@dataclass(frozen=True)
 class Pix2PixHDConfig:
     """Network sizes, loss weights and optimisation settings.
 
@@ -71,20 +71,11 @@ class Pix2PixHDConfig:
                 f"Model size {self.width}x{self.height} must be divisible by {factor} for this generator; "
                 "choose a multiple of it.")
 
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> "Pix2PixHDConfig":
-        names = {f.name for f in fields(cls)}
-        return cls(**{k: v for k, v in d.items() if k in names})
-
 
 PRESETS: dict[str, Pix2PixHDConfig] = {
     # CPU: global generator only, trains in minutes on a short video.
     "small": Pix2PixHDConfig(),
-    # Published pix2pixHD 1024p / Everybody Dance Now settings (GPU): 1024x512 with the local enhancer, whose
-    # global generator runs at 512x256 with 2 * ngf = 64 filters, 4 downsamplings and 9 blocks.
+    # Published pix2pixHD 1024p / Everybody Dance Now settings (GPU); the enhancer's global generator gets 2 * ngf.
     "paper": Pix2PixHDConfig(width=1024, height=512, ngf=32, n_downsample=4, n_blocks=9, local_enhancer=True,
                              ndf=64, lambda_l1=0.0, batch_size=1),
 }
@@ -94,7 +85,7 @@ def preset(name: str, **overrides) -> Pix2PixHDConfig:
     """A copy of preset ``name`` with some fields replaced."""
     if name not in PRESETS:
         raise DancesynthError(f"Unknown preset {name!r}; choose one of {', '.join(PRESETS)}.")
-    return Pix2PixHDConfig(**{**PRESETS[name].to_dict(), **overrides})
+    return replace(PRESETS[name], **overrides)
 
 
 class ResnetBlock(nn.Module):

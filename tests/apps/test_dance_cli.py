@@ -78,7 +78,7 @@ def test_dance_writes_a_video_with_the_song_segment(models, tmp_path, capsys, ex
     assert probe_video(side).width == 64
     # The muxed audio is the chosen segment of the song (the click train), not silence.
     assert np.sqrt(np.mean(decode_audio(out, 8000) ** 2)) > 0.05
-    assert str(out) in capsys.readouterr().out
+    assert str(out) in capsys.readouterr().err
 
 
 def test_dance_from_a_folder_of_runs_picks_the_method(models, tmp_path):
@@ -98,10 +98,12 @@ def test_bad_inputs_are_one_sentence_errors_and_leave_no_file(models, tmp_path, 
     song = _song(tmp_path / "song.wav")
     out = tmp_path / "x.mp4"
     cases = [
-        ([str(tmp_path / "missing.mp3"), "--pose-model", str(pose_run), "--video-model", str(video_run)], "does not exist"),
+        ([str(tmp_path / "missing.mp3"), "--pose-model", str(pose_run), "--video-model", str(video_run)],
+         "does not exist"),
         ([str(song), "--pose-model", str(video_run), "--video-model", str(video_run)], "pose model"),
         ([str(song), "--pose-model", str(pose_run), "--video-model", str(pose_run)], "appearance model"),
-        ([str(song), "--pose-model", str(pose_run), "--video-model", str(video_run), "--start", "9"], "outside the song"),
+        ([str(song), "--pose-model", str(pose_run), "--video-model", str(video_run), "--start", "9"],
+         "outside the song"),
     ]
     for args, words in cases:
         assert main(["dance", *args, "--out", str(out)]) == 1

@@ -22,13 +22,13 @@ def test_evaluate_a_tiny_lstm_end_to_end(tmp_path, capsys):
     assert main(["make-dataset", "--out", str(data), "--clips", "4", "--seconds", "6"]) == 0
     assert main(["train-style-classifier", "--data", str(data), "--out", str(clf), "--preset", "small",
                  "--steps", "30", "--device", "cpu"]) == 0
-    assert "accuracy on the test split's real dances" in capsys.readouterr().out
+    assert "accuracy on the test split's real dances" in capsys.readouterr().err
     assert main(["train-pose", "--method", "lstm", "--data", str(data), "--out", str(run), "--preset", "small",
                  "--epochs", "1", "--batch-size", "2", "--window", "30", "--preview-every", "0",
                  "--device", "cpu"]) == 0
     assert main(["evaluate", "--data", str(data), "--models", str(run), "--out", str(out), "--classifier", str(clf),
                  "--trials", "2", "--seconds", "6", "--video-seconds", "1", "--device", "cpu"]) == 0
-    printed = capsys.readouterr().out
+    printed = capsys.readouterr().err
     assert "| lstm |" in printed and "| real dances |" in printed
     rows = {r["name"]: r for r in json.loads((out / "report.json").read_text())["rows"]}
     assert set(rows) == {"real dances", "random real dance", "mean pose (frozen)", "lstm"}

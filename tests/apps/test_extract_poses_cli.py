@@ -20,21 +20,23 @@ def test_extract_poses_writes_poses_and_preview(tmp_path, capsys):
         frames.append(frame)
     video, out, preview = tmp_path / "clip.mp4", tmp_path / "poses.npz", tmp_path / "overlay.mp4"
     write_video(video, frames, 12)
-    assert main([NAME, str(video), "--out", str(out), "--preview", str(preview), "--quiet"]) == 0
+    assert main([NAME, str(video), "--out", str(out), "--preview", str(preview)]) == 0
     poses = PoseSequence.load(out)
     assert (len(poses), poses.fps, poses.width, poses.height) == (5, 12, 240, 200)
     nose_x = poses.keypoints[:, JOINT_INDEX["Nose"], 0]
     assert np.all(np.diff(nose_x) > 5)
     info = probe_video(preview)
     assert (info.num_frames, info.width, info.height) == (5, 240, 200)
-    assert "person found in 100% of frames" in capsys.readouterr().out
+    assert "person found in 100% of frames" in capsys.readouterr().err
 
 
 def test_extract_poses_reports_user_errors_without_traceback(tmp_path, capsys):
     assert main([NAME, str(tmp_path / "missing.mp4"), "--out", str(tmp_path / "p.npz")]) == 1
     assert "missing.mp4 does not exist" in capsys.readouterr().err
-    assert main([NAME, str(tmp_path / "missing.mp4"), "--out", str(tmp_path / "p.json")]) == 1
+    video = tmp_path / "v.mp4"
+    video.write_bytes(b"never decoded")
+    assert main([NAME, str(video), "--out", str(tmp_path / "p.json")]) == 1
     assert "must end in .npz" in capsys.readouterr().err
-    assert main([NAME, "x.mp4", "--out", str(tmp_path / "p.npz"), "--smoothing", "savgol", "--window", "-1"]) == 1
+    assert main([NAME, str(video), "--out", str(tmp_path / "p.npz"), "--smoothing", "savgol", "--window", "-1"]) == 1
     assert "must be positive" in capsys.readouterr().err
 

@@ -9,7 +9,7 @@ from stage1_pose.data.dataset import DanceDataset
 def test_make_dataset_command(tmp_path, capsys):
     out = tmp_path / "ds"
     assert main(["make-dataset", "--out", str(out), "--clips", "3", "--seconds", "5", "--workers", "1"]) == 0
-    assert "3 clips of 5 s" in capsys.readouterr().out
+    assert "3 clips of 5 s" in capsys.readouterr().err
     ds = DanceDataset(out)
     assert len(ds.clips()) == 3 and {c.split for c in ds.clips()} == {"train", "val", "test"}
     assert all(len(ds.load_poses(c)) == 75 for c in ds.clips())
@@ -18,7 +18,7 @@ def test_make_dataset_command(tmp_path, capsys):
 def test_make_dataset_command_reports_bad_input(tmp_path, capsys):
     assert main(["make-dataset", "--out", str(tmp_path / "ds"), "--clips", "0"]) == 1
     err = capsys.readouterr().err
-    assert "--clips must be at least 1" in err and "Traceback" not in err
+    assert "--clips: must be positive" in err and "Traceback" not in err
 
 
 def test_import_dance_command(tmp_path, capsys):
@@ -35,7 +35,8 @@ def test_import_dance_command(tmp_path, capsys):
     out = tmp_path / "ds"
     assert main(["import-dance", "--out", str(out), "--aistpp", str(tmp_path / "gPO_x.npy"),
                  "--audio", str(tmp_path / "song.wav"), "--split", "test"]) == 0
-    assert "added clip gPO_x (style pop, split test)" in capsys.readouterr().out
+    assert "added clip gPO_x (style pop, split test)" in capsys.readouterr().err
     assert len(DanceDataset(out).load_poses(DanceDataset(out).clips()[0])) == 45
-    assert main(["import-dance", "--out", str(out), "--openpose", str(tmp_path), "--audio", "x.wav"]) == 1
+    assert main(["import-dance", "--out", str(out), "--openpose", str(tmp_path), "--audio",
+                 str(tmp_path / "song.wav")]) == 1
     assert "--openpose needs --style, --fps, --width, --height" in capsys.readouterr().err

@@ -9,11 +9,11 @@ import skimage.data
 
 from apps.cli import main
 from apps.prepare import clip_bounds, find_videos, prepare_videos
-from stage1_pose.data.dataset import DanceDataset
-from stage1_pose.data.layout import read_manifest
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import write_video
 from dancesynth.core.skeleton import JOINT_INDEX, PoseSequence
+from stage1_pose.data.dataset import DanceDataset
+from stage1_pose.data.layout import read_manifest
 
 SR = 22050
 
@@ -51,7 +51,7 @@ def test_real_videos_become_a_dataset_with_styles_from_folders(tmp_path, capsys)
     astronaut_video(videos / "tango" / "empty_room.mp4", 3.0, person=False)
     out = tmp_path / "data"
     assert main(["prepare", str(videos), "--out", str(out), "--clip-seconds", "2"]) == 0
-    printed = capsys.readouterr().out
+    printed = capsys.readouterr().err
     assert "silent.mp4: " in printed and "no audio stream" in printed
     assert "empty_room.mp4: " in printed and "No person" in printed
     manifest = read_manifest(out)
@@ -71,7 +71,7 @@ def test_real_videos_become_a_dataset_with_styles_from_folders(tmp_path, capsys)
     assert len(beats) >= 3 and np.allclose(np.diff(beats), 0.5, atol=0.05)
     # Re-running adds nothing and keeps the dataset as it was.
     main(["prepare", str(videos), "--out", str(out), "--clip-seconds", "2"])
-    assert "added 0 clips (2 were there already)" in capsys.readouterr().out
+    assert "added 0 clips (2 were there already)" in capsys.readouterr().err
     assert len(read_manifest(out).clips) == 2
 
 

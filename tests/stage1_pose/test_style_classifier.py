@@ -6,8 +6,13 @@ import torch
 
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import PoseSequence
-from stage1_pose.style_classifier import (PRESETS, classifier_accuracy, load_style_classifier,
-                                          save_style_classifier, train_style_classifier)
+from stage1_pose.style_classifier import (
+    PRESETS,
+    classifier_accuracy,
+    load_style_classifier,
+    save_style_classifier,
+    train_style_classifier,
+)
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -71,3 +76,61 @@ def test_too_short_dance_is_a_user_error():
 def test_loading_a_wrong_folder_is_a_user_error(tmp_path):
     with pytest.raises(DancesynthError):
         load_style_classifier(tmp_path / "missing", torch.device("cpu"))
+
+
+class Crash(BaseException):
+    """Stands for the process dying mid-training: nothing on the way handles it."""
+
+
+def test_interrupted_training_resumes_bit_exactly(tmp_path, monkeypatch):
+    from dancesynth.core.checkpoint import load_checkpoint, load_meta
+    from dancesynth.core.runs import RunFolder
+    from stage1_pose.style_classifier import KIND, StyleClassifier
+
+    dances = [toy_dance(s, seed) for seed in range(2) for s in range(3)]
+    labels = [s for _ in range(2) for s in range(3)]
+    config = dataclasses.replace(PRESETS["small"], steps=7)
+
+    def train(out, resume=False):
+        run = RunFolder(out, KIND, torch.device("cpu"), resume=resume)
+        return train_style_classifier(dances, labels, ["a", "b", "c"], config, torch.device("cpu"), progress=False,
+                                      run=run, checkpoint_every=3)
+
+    train(tmp_path / "straight")
+    real_forward, calls = StyleClassifier.forward, []
+
+    def forward_then_die(self, x):
+        calls.append(1)
+        if len(calls) == 5:  # step 5: the checkpoint of step 3 is on disk
+            raise Crash
+        return real_forward(self, x)
+
+    monkeypatch.setattr(StyleClassifier, "forward", forward_then_die)
+    with pytest.raises(Crash):
+        train(tmp_path / "killed")
+    monkeypatch.undo()
+    assert load_meta(tmp_path / "killed", KIND)["step"] == 3
+    with pytest.raises(DancesynthError, match="--resume"):
+        train(tmp_path / "killed")
+    clf = train(tmp_path / "killed", resume=True)
+    a, b = load_checkpoint(tmp_path / "straight", KIND)[0], load_checkpoint(tmp_path / "killed", KIND)[0]
+    for k in a:
+        assert torch.equal(a[k], b[k]), k
+        assert torch.equal(clf.model.state_dict()[k], a[k]), k
+    csv = (tmp_path / "killed" / "metrics.csv").read_text()
+    assert csv == (tmp_path / "straight" / "metrics.csv").read_text()
+    assert [line.split(",")[0] for line in csv.splitlines()] == ["step", "3", "6", "7"]
+
+
+def test_train_style_classifier_command_resumes_to_more_steps(tiny_stage1_dataset, tmp_path):
+    from apps.cli import main
+    from dancesynth.core.checkpoint import load_meta
+
+    args = ["train-style-classifier", "--data", str(tiny_stage1_dataset), "--out", str(tmp_path / "clf"),
+            "--preset", "small", "--device", "cpu"]
+    assert main([*args, "--steps", "2"]) == 0
+    assert main([*args, "--steps", "4"]) == 1  # the folder holds a model: continuing it needs --resume
+    assert main([*args, "--steps", "4", "--resume"]) == 0
+    meta = load_meta(tmp_path / "clf", "style_classifier")
+    assert meta["step"] == 4 and meta["config"]["steps"] == 4 and "test_accuracy" in meta
+    assert load_style_classifier(tmp_path / "clf", torch.device("cpu")).styles == ["hiphop"]

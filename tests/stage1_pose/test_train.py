@@ -6,11 +6,11 @@ from pathlib import Path
 
 import pytest
 import torch
-from safetensors.torch import load_file
 
 # The machine is shared: one intra-op thread avoids OpenMP contention that makes tiny ops take milliseconds.
 torch.set_num_threads(1)
 
+from dancesynth.core.checkpoint import load_checkpoint  # noqa: E402
 from dancesynth.core.errors import DancesynthError  # noqa: E402
 from stage1_pose.train import TrainerConfig, epoch_order, rank_batches, train  # noqa: E402
 
@@ -21,7 +21,7 @@ TINY_LSTM = dict(hidden=16, layers=2, dropout=0.0, window_frames=30, batch_size=
 
 
 def _weights(run: Path) -> dict[str, torch.Tensor]:
-    return load_file(str(run / "latest.safetensors"))
+    return load_checkpoint(run, "stage1")[0]
 
 
 def test_data_order_depends_only_on_seed_and_epoch():
@@ -68,15 +68,16 @@ def test_metrics_columns_of_a_later_training_phase_are_labelled(tiny_stage1_data
 KILLER = """
 import os, signal, sys, torch
 torch.set_num_threads(1)
+import dancesynth.core.checkpoint as ckpt
 import stage1_pose.train as t
 saves = []
-real_save = t.ckpt.save_checkpoint
+real_save = ckpt.save_checkpoint
 def save_then_die(*args, **kwargs):
     real_save(*args, **kwargs)
     saves.append(1)
     if len(saves) == 2:
         os.kill(os.getpid(), signal.SIGKILL)
-t.ckpt.save_checkpoint = save_then_die
+ckpt.save_checkpoint = save_then_die
 t.train("dance_revolution", sys.argv[1], sys.argv[2], overrides={overrides!r}, epochs=2,
         options=t.TrainerConfig(checkpoint_every=3, preview_every=0))
 """
@@ -104,14 +105,14 @@ def test_resume_after_kill_9_gives_the_same_weights(tiny_stage1_dataset, tmp_pat
 def _ddp_worker(rank: int, data: str, out: str, port: int) -> None:
     os.environ.update(MASTER_ADDR="127.0.0.1", MASTER_PORT=str(port), RANK=str(rank), WORLD_SIZE="2")
     torch.set_num_threads(1)
-    from stage1_pose.registry import make_config
-    from stage1_pose.train import Trainer
     from dancesynth.core.device import resolve_device
+    from dancesynth.core.runs import RunFolder
+    from stage1_pose.registry import make_config
+    from stage1_pose.train import KIND, Trainer
 
-    trainer = Trainer("lstm", Path(data), Path(out), make_config("lstm", "small", TINY_LSTM),
-                      TrainerConfig(epochs=1, preview_every=0), resolve_device("cpu"))
-    if rank == 0:
-        Path(out).mkdir(parents=True, exist_ok=True)
+    device = resolve_device("cpu")
+    trainer = Trainer("lstm", Path(data), RunFolder(out, KIND, device), make_config("lstm", "small", TINY_LSTM),
+                      TrainerConfig(epochs=1, preview_every=0), device)
     trainer.run()
     torch.save(trainer.method.state_dict(), Path(out).parent / f"rank{rank}.pt")
     torch.distributed.destroy_process_group()

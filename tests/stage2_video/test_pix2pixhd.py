@@ -2,8 +2,7 @@ import pytest
 import torch
 
 from dancesynth.core.errors import DancesynthError
-from stage2_video.models.pix2pixhd import (
-    LocalEnhancer, Pix2PixHD, feature_matching_loss, lsgan_loss, preset)
+from stage2_video.models.pix2pixhd import LocalEnhancer, Pix2PixHD, feature_matching_loss, lsgan_loss, preset
 from stage2_video.vgg import NOTICE, VGGLoss, build_vgg_loss
 
 

@@ -15,7 +15,8 @@ def figure(width: int, height: int, arm_raise: float = 0.0) -> np.ndarray:
     """``[25, 3]`` upright figure; ``arm_raise`` (0..1) lifts the right arm above the head."""
     cx = width / 2
     points = {
-        "Nose": (cx, .16), "Neck": (cx, .26), "RShoulder": (cx - .09 * width, .27), "LShoulder": (cx + .09 * width, .27),
+        "Nose": (cx, .16), "Neck": (cx, .26),
+        "RShoulder": (cx - .09 * width, .27), "LShoulder": (cx + .09 * width, .27),
         "RElbow": (cx - .14 * width, .40 - arm_raise * .25), "RWrist": (cx - .16 * width, .53 - arm_raise * .5),
         "LElbow": (cx + .14 * width, .40), "LWrist": (cx + .15 * width, .53), "MidHip": (cx, .55),
         "RHip": (cx - .05 * width, .55), "LHip": (cx + .05 * width, .55), "RKnee": (cx - .06 * width, .72),

@@ -2,8 +2,9 @@ import csv
 
 import numpy as np
 import pytest
-from safetensors.numpy import load_file
+import torch
 
+from dancesynth.core.checkpoint import load_checkpoint
 from dancesynth.core.errors import DancesynthError
 from stage2_video.train import TrainOptions, train_video
 
@@ -23,8 +24,10 @@ def test_tiny_model_learns_to_reproduce_frames(tiny_target, tiny_config, tmp_pat
     assert len(rows) == meta["step"] == 6 * 5
     assert l1[-5:].mean() < 0.6 * l1[:5].mean()
     assert meta["kind"] == "stage2" and meta["target_stats"] is not None
-    for name in ("latest.safetensors", "latest.json", "poses.npz", "losses.png", "validation.csv"):
+    for name in ("latest.json", "poses.npz", "losses.png", "validation.csv"):
         assert (tmp_path / name).is_file(), name
+    assert load_checkpoint(tmp_path, "stage2")[1]["step"] == meta["step"]
+    assert [r["step"] for r in _rows(tmp_path / "validation.csv")] == [str(meta["step"])]
     assert list((tmp_path / "samples").glob("step_*.png"))
 
 
@@ -33,16 +36,18 @@ def test_resume_is_exact(tiny_target, tiny_config, tmp_path):
     straight, split = tmp_path / "straight", tmp_path / "split"
     opts = dict(epochs=2, val_frames=2, sample_every=1000, checkpoint_every=1000)
     train_video(video, straight, "small", TrainOptions(**opts), poses=poses, device="cpu", overrides=tiny_config)
-    train_video(video, split, "small", TrainOptions(**opts, max_steps=3), poses=poses, device="cpu", overrides=tiny_config)
+    train_video(video, split, "small", TrainOptions(**opts, max_steps=3), poses=poses, device="cpu",
+                overrides=tiny_config)
     with pytest.raises(DancesynthError, match="--resume"):
         train_video(video, split, "small", TrainOptions(**opts), poses=poses, device="cpu", overrides=tiny_config)
     meta = train_video(video, split, "small", TrainOptions(**opts), resume=True, poses=poses, device="cpu")
     assert meta["step"] == 10
-    a, b = load_file(straight / "latest.safetensors"), load_file(split / "latest.safetensors")
+    a, b = load_checkpoint(straight, "stage2")[0], load_checkpoint(split, "stage2")[0]
     assert a.keys() == b.keys()
     for k in a:
-        np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+        assert torch.equal(a[k], b[k]), k
     assert [r["step"] for r in _rows(split / "losses.csv")] == [str(s) for s in range(1, 11)]
+    assert [r["step"] for r in _rows(split / "validation.csv")] == ["3", "10"]
 
 
 def test_bad_inputs_are_user_errors(tiny_target, tmp_path):

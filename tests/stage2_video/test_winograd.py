@@ -2,8 +2,8 @@ import pytest
 import torch
 from torch import nn
 
-from stage2_video.render import OpenVINOGenerator
 from stage2_video.models.pix2pixhd import Pix2PixHD, ResnetBlock, preset
+from stage2_video.render import OpenVINOGenerator
 from stage2_video.winograd import WinogradConv3x3, WinogradResnetStack, winograd_generator
 
 

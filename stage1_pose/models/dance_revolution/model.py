@@ -6,9 +6,10 @@ transformer layers whose self-attention is local (window k, O(n·k) memory), giv
 Decoder (Eq. 3-4): a 3-layer LSTM whose initial hidden and cell states are drawn from N(0, I) - the source of
 variety: another seed gives another dance - fed the previous pose (frame 0: the all-zero begin-of-pose);
 ``y_i = [h_i; z_i] W + b``. Optionally (``code_dim`` > 0, the ``small`` preset) each input also carries a
-choreography code drawn per segment (:mod:`stage1_pose.models.dance_revolution.segment_latent`), because the decoder forgets its
-initial state within a few frames and seeds then give the same dance; and (``beat_phase_input``) the frame's
-phase between two music beats (:mod:`stage1_pose.models.dance_revolution.beat_clock`), because the music reaches the paper's LSTM
+choreography code drawn per segment (:mod:`stage1_pose.models.dance_revolution.segment_latent`), because the
+decoder forgets its initial state within a few frames and seeds then give the same dance; and
+(``beat_phase_input``) the frame's phase between two of the song's beats
+(:mod:`stage1_pose.models.dance_revolution.beat_clock`), because the music reaches the paper's LSTM
 only through its own fed-back poses and the moves then drift off the beat; and (``z_smoothing``) the music's
 term of the output is smoothed in time, because ``z_i`` follows the frame-to-frame changes of the features and made
 the body jitter; and (``speed_weight``) the loss also compares each joint's speed with the real dance's, because
@@ -16,8 +17,9 @@ with the pose loss alone the dances neither slowed down on the beat nor moved at
 Curriculum (Sec. 3.3): decoder inputs alternate ``p`` of its own predictions with ``q`` ground-truth frames,
 ``p = f(epoch)`` growing with one of const, ⌊λt⌋, ⌊λt²⌋, ⌊λeᵗ⌋; L1 loss.
 
-Shapes: audio ``[B, T, feature_dim]`` standardised features (one row per pose frame); poses ``[B, T, 25, 2]``
-model coordinates (:func:`dancesynth.core.skeleton.normalize`), flattened to 50 numbers per frame inside.
+Shapes: features ``[B, T, feature_dim]`` standardised features (one row per pose frame); beats ``[B, T]`` bool,
+the song's beat frames; poses ``[B, T, 25, 2]`` model coordinates (:func:`dancesynth.core.skeleton.normalize`),
+flattened to 50 numbers per frame inside.
 """
 
 from __future__ import annotations
@@ -30,14 +32,18 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from stage1_pose.audio import BEAT_COLUMN
 from dancesynth.core.errors import DancesynthError
+from dancesynth.core.skeleton import NUM_JOINTS
 from stage1_pose.models.base import Batch, Stage1Method
 from stage1_pose.models.dance_revolution.beat_clock import beat_phase, phase_features
 from stage1_pose.models.dance_revolution.local_attention import LocalSelfAttention
-from stage1_pose.models.dance_revolution.segment_latent import (SegmentPosterior, beat_segments, fixed_segments, kl_with_free_bits,
-                                               prior_codes)
-from dancesynth.core.skeleton import NUM_JOINTS
+from stage1_pose.models.dance_revolution.segment_latent import (
+    SegmentPosterior,
+    beat_segments,
+    fixed_segments,
+    kl_with_free_bits,
+    prior_codes,
+)
 
 POSE_DIM = NUM_JOINTS * 2
 SCHEDULES = ("const", "linear", "quadratic", "exponential")
@@ -51,10 +57,10 @@ class DanceRevolutionConfig:
     ``window`` is the local-attention width k in frames; ``curriculum`` one of :data:`SCHEDULES` with
     ``lam`` (λ) and ``q`` ground-truth frames per cycle (``const_p`` is p for the const schedule);
     ``window_frames`` the training sequence length in frames; ``lr`` Adam's learning rate.
-    ``code_dim`` > 0 adds a choreography code (not in the paper, see :mod:`stage1_pose.models.dance_revolution.segment_latent`):
-    ``code_dim`` numbers per segment of ``code_frames`` frames (``code_on_beats``: per interval between the
-    beats of the features' beat one-hot), appended to every decoder input, learned with a
-    posterior over the real dance and a KL term weighted ``kl_weight`` against the L1 loss; 0 is the paper.
+    ``code_dim`` > 0 adds a choreography code (not in the paper, see
+    :mod:`stage1_pose.models.dance_revolution.segment_latent`): ``code_dim`` numbers per segment of ``code_frames``
+    frames (``code_on_beats``: per interval between the song's beats), appended to every decoder input, learned
+    with a posterior over the real dance and a KL term weighted ``kl_weight`` against the L1 loss; 0 is the paper.
     ``free_bits``: the first ``free_bits`` nats of each code number's KL cost nothing (Kingma et al. 2016).
     ``speed_weight`` adds an L1 loss on each joint's speed, the length of its frame-to-frame change: how fast
     to move at each moment, without the pull towards standing still that an L1 loss on the changes themselves
@@ -101,9 +107,6 @@ class DanceRevolutionConfig:
             raise DancesynthError("speed_weight must be >= 0 (0: the paper's L1 loss on poses only).")
         if self.z_smoothing < 0:
             raise DancesynthError("z_smoothing must be >= 0 frames (0: the paper's per-frame output).")
-        if (self.code_on_beats or self.beat_phase_input) and self.feature_dim <= BEAT_COLUMN:
-            raise DancesynthError("code_on_beats and beat_phase_input need the dance_revolution features "
-                                  "(their beat one-hot column).")
 
     @classmethod
     def preset(cls, name: str) -> "DanceRevolutionConfig":
@@ -115,16 +118,9 @@ class DanceRevolutionConfig:
 
 
 DANCE_REVOLUTION_PRESETS: dict[str, DanceRevolutionConfig] = {
-    # Sec. 4.2 of the paper (d_z = 256, 8 heads, d_k = d_v = 64, FFN 1024, 2 layers, k = 100, LSTM 3 x 1024,
-    # n = 900, λ = 0.01, q = 10, Adam 1e-4, batch 32).
+    # The paper's settings (Sec. 4.2).
     "paper": DanceRevolutionConfig(),
-    # CPU-sized: narrow layers; 30-s windows, because a decoder trained on 6-s windows drifted to a near-standstill
-    # after about 10 s of a 60-s dance (its state left the range it was trained in); p = ⌊t⌋ grows to 6x q in
-    # 60 epochs (8-16 minutes), so the decoder learns to continue from its own output. The paper's decoder gave
-    # the same dance for every seed (it forgets its initial state), hence the choreography code, one per beat
-    # interval; its moves were off the beat, hence the beat phase input and the smoothed music term; it moved too
-    # fast, fastest early in each beat interval rather than mid-beat, hence the speed loss. Weights and free bits:
-    # the settings measured best in the README (Known limitations).
+    # CPU-sized, plus what made seeds differ and moves land on beats in minutes (docs/methods/dance_revolution.md).
     "small": DanceRevolutionConfig(d_model=64, heads=4, d_k=16, d_v=16, d_ff=128, layers=2, window=30,
                                    lstm_hidden=128, lam=1.0, lr=1e-3, batch_size=16, window_frames=450, epochs=60,
                                    code_dim=8, code_on_beats=True, kl_weight=0.002, free_bits=0.25,
@@ -183,7 +179,7 @@ class EncoderLayer(nn.Module):
 
 
 class MusicEncoder(nn.Module):
-    """``[B, T, feature_dim]`` -> ``[B, T, d_model]`` latent music ``z``; memory O(T · window)."""
+    """``[B, T, feature_dim]`` features -> ``[B, T, d_model]`` latent music ``z``; memory O(T · window)."""
 
     def __init__(self, cfg: DanceRevolutionConfig) -> None:
         super().__init__()
@@ -191,24 +187,24 @@ class MusicEncoder(nn.Module):
         self.drop = nn.Dropout(cfg.dropout)
         self.layers = nn.ModuleList(EncoderLayer(cfg) for _ in range(cfg.layers))
 
-    def forward(self, audio: torch.Tensor, start: int = 0) -> torch.Tensor:
-        """``start``: the frame index of ``audio[:, 0]`` in the song (for the positional encoding)."""
-        x = self.embed(audio)
+    def forward(self, features: torch.Tensor, start: int = 0) -> torch.Tensor:
+        """``start``: the frame index of ``features[:, 0]`` in the song (for the positional encoding)."""
+        x = self.embed(features)
         x = self.drop(x + sinusoidal_encoding(x.shape[1], x.shape[2], x.device, start))
         for layer in self.layers:
             x = layer(x)
         return x
 
-    def encode_chunked(self, audio: torch.Tensor, chunk: int = 900) -> torch.Tensor:
+    def encode_chunked(self, features: torch.Tensor, chunk: int = 900) -> torch.Tensor:
         """Same result as :meth:`forward` (eval mode) with memory bounded by ``chunk`` frames whatever the song
         length: each chunk is encoded with the ``layers x window // 2`` frames of context either side that
         its outputs can see, and only its own frames are kept."""
         halo = len(self.layers) * (self.layers[0].attention.window // 2) if self.layers else 0
-        frames = audio.shape[1]
+        frames = features.shape[1]
         parts = []
         for s in range(0, frames, chunk):
             lo, hi = max(0, s - halo), min(frames, s + chunk + halo)
-            parts.append(self(audio[:, lo:hi], start=lo)[:, s - lo: s - lo + min(chunk, frames - s)])
+            parts.append(self(features[:, lo:hi], start=lo)[:, s - lo: s - lo + min(chunk, frames - s)])
         return torch.cat(parts, dim=1)
 
 
@@ -266,15 +262,10 @@ class LSTMStepper:
         return new_h, new_c
 
 
-def beat_flags(audio: torch.Tensor) -> torch.Tensor:
-    """Beat frames ``[B, T]`` (bool) of standardised features ``[B, T, feature_dim]``: where the beat one-hot
-    column is above its mean."""
-    return audio[..., BEAT_COLUMN] > 0
-
-
-def joint_speeds(poses: torch.Tensor) -> torch.Tensor:
-    """``[B, T, 50]`` flattened poses -> ``[B, T - 1, 25]`` each joint's distance moved per frame (model units),
-    with a gradient also where a joint stands still."""
+def differentiable_joint_speeds(poses: torch.Tensor) -> torch.Tensor:
+    """The speed loss's measure: ``[B, T, 50]`` flattened poses -> ``[B, T - 1, 25]`` each joint's distance moved
+    per frame (model units), with a gradient also where a joint stands still (the numpy measure of dances is
+    :func:`dancesynth.core.motion.joint_speeds`)."""
     step = poses.diff(dim=1).unflatten(2, (NUM_JOINTS, 2))
     return (step.pow(2).sum(-1) + 1e-8).sqrt()
 
@@ -295,7 +286,7 @@ def smooth_in_time(x: torch.Tensor, sigma: float) -> torch.Tensor:
     return F.conv1d(padded, kernel, groups=x.shape[2]).transpose(1, 2)
 
 
-class DanceDecoder(nn.Module):
+class PoseDecoder(nn.Module):
     """The 3-layer LSTM and the output layer ``y_i = [h_i; z_i] W + b``.
 
     The LSTM is one ``nn.LSTM`` (the same maths as stacked LSTM cells), so runs of known inputs - the
@@ -380,7 +371,7 @@ class DanceRevolution(Stage1Method):
     def __init__(self, config: DanceRevolutionConfig) -> None:
         super().__init__(config)
         self.encoder = MusicEncoder(config)
-        self.decoder = DanceDecoder(config)
+        self.decoder = PoseDecoder(config)
         self.posterior = SegmentPosterior(POSE_DIM, config.code_dim) if config.code_dim else None
         self.epoch = 0
         # Prepared decoding weights for inference (see prepare_inference); None = exact, rebuilt per call.
@@ -399,13 +390,13 @@ class DanceRevolution(Stage1Method):
         self.epoch = epoch
         target = batch.poses.flatten(2)
         frames = target.shape[1]
-        z = self.encoder(batch.audio)
+        z = self.encoder(batch.features)
         state = self.decoder.initial_state(target.shape[0], target.device)
         if self.posterior is None:
             codes, kl = target.new_zeros(*target.shape[:2], 0), None
         else:
-            codes, kl = self.posterior.sample(target, self.segments(batch.audio))
-        extras = self.decoder_extras(batch.audio, codes)
+            codes, kl = self.posterior.sample(target, self.segments(batch.beats))
+        extras = self.decoder_extras(batch.beats, codes)
         pred = self.decoder(z, state, target, predicted_inputs(frames, self.p, self.config.q), extras)
         l1 = F.l1_loss(pred, target)
         loss, scalars = l1, {"l1": l1.item(), "p": float(self.p)}
@@ -413,37 +404,39 @@ class DanceRevolution(Stage1Method):
             loss = loss + self.config.kl_weight * kl_with_free_bits(kl, self.config.free_bits)
             scalars["kl"] = kl.mean().item()
         if self.config.speed_weight:
-            speed = F.l1_loss(joint_speeds(pred), joint_speeds(target))
+            speed = F.l1_loss(differentiable_joint_speeds(pred), differentiable_joint_speeds(target))
             loss = loss + self.config.speed_weight * speed
             scalars["speed"] = speed.item()
         self.optimize("main", loss)
         return scalars
 
     @torch.no_grad()
-    def generate(self, audio: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
-        """``[B, T, feature_dim]`` -> ``[B, T, 25, 2]`` for any T; the initial LSTM state and the choreography
-        codes come from ``generator``."""
-        batch, frames = audio.shape[:2]
-        z = self.encoder.encode_chunked(audio)
-        state = self.decoder.initial_state(batch, audio.device, generator)
-        codes = prior_codes(self.segments(audio), self.config.code_dim, generator)
-        stepper = self._stepper if audio.device.type == "cpu" else None
-        poses = self.decoder.generate(z, state, self.decoder_extras(audio, codes), stepper)
+    def generate(self, features: torch.Tensor, beats: torch.Tensor,
+                 generator: torch.Generator | None = None) -> torch.Tensor:
+        """``[B, T, feature_dim]`` features, ``[B, T]`` beat flags -> ``[B, T, 25, 2]`` for any T; the initial LSTM
+        state and the choreography codes come from ``generator``."""
+        batch, frames = features.shape[:2]
+        beats = beats.to(features.device)
+        z = self.encoder.encode_chunked(features)
+        state = self.decoder.initial_state(batch, features.device, generator)
+        codes = prior_codes(self.segments(beats), self.config.code_dim, generator)
+        stepper = self._stepper if features.device.type == "cpu" else None
+        poses = self.decoder.generate(z, state, self.decoder_extras(beats, codes), stepper)
         return poses.reshape(batch, frames, NUM_JOINTS, 2)
 
-    def segments(self, audio: torch.Tensor) -> torch.Tensor:
-        """Choreography-code segment ids ``[B, T]`` for standardised features ``[B, T, feature_dim]``: a new
-        segment at every beat of the beat one-hot (:func:`beat_flags`) or every ``code_frames`` frames."""
+    def segments(self, beats: torch.Tensor) -> torch.Tensor:
+        """Choreography-code segment ids ``[B, T]`` for beat flags ``[B, T]``: a new segment at every beat
+        (``code_on_beats``) or every ``code_frames`` frames."""
         if self.config.code_on_beats:
-            return beat_segments(beat_flags(audio))
-        return fixed_segments(audio.shape[0], audio.shape[1], self.config.code_frames, audio.device)
+            return beat_segments(beats)
+        return fixed_segments(beats.shape[0], beats.shape[1], self.config.code_frames, beats.device)
 
-    def decoder_extras(self, audio: torch.Tensor, codes: torch.Tensor) -> torch.Tensor:
+    def decoder_extras(self, beats: torch.Tensor, codes: torch.Tensor) -> torch.Tensor:
         """``[B, T, extra_dim]``: per-frame ``codes [B, T, code_dim]`` and, with ``beat_phase_input``, the beat
-        phase features of the standardised ``audio [B, T, feature_dim]``."""
+        phase features of the beat flags ``beats [B, T]``."""
         if not self.config.beat_phase_input:
             return codes
-        return torch.cat([codes, phase_features(beat_phase(beat_flags(audio)))], dim=-1)
+        return torch.cat([codes, phase_features(beat_phase(beats))], dim=-1)
 
     def prepare_inference(self, precision: str = "fp32") -> None:
         """Freeze the current weights for fast decoding: ``"int8"`` quantises the LSTM (CPU only, about 3x

@@ -17,6 +17,8 @@ from __future__ import annotations
 import torch
 from torch import nn
 
+from stage1_pose.models.gaussian import kl_to_standard_normal, reparameterize
+
 
 def fixed_segments(batch: int, frames: int, every: int, device: torch.device | None = None) -> torch.Tensor:
     """Segment ids ``[batch, frames]``: frames ``s*every .. (s+1)*every - 1`` form segment ``s``."""
@@ -41,12 +43,6 @@ def prior_codes(ids: torch.Tensor, dim: int, generator: torch.Generator | None =
     count = int(ids.max()) + 1 if ids.numel() else 0
     codes = torch.randn((ids.shape[0], count, dim), generator=generator, device=draw_on).to(ids.device)
     return per_frame(codes, ids)
-
-
-def kl_to_standard_normal(mean: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
-    """``[N, dim]`` Gaussians -> ``[dim]``: ``KL(N(mean, exp(logvar)) || N(0, 1))`` of each code number, in nats
-    per segment, averaged over the N segments."""
-    return 0.5 * (mean ** 2 + logvar.exp() - 1.0 - logvar).mean(dim=0)
 
 
 def kl_with_free_bits(kl: torch.Tensor, free_bits: float) -> torch.Tensor:
@@ -81,5 +77,5 @@ class SegmentPosterior(nn.Module):
         """Reparameterised per-frame codes ``[B, T, dim]`` and the KL ``[dim]`` of each code number (nats per
         segment, averaged over the segments present)."""
         mean, logvar, present = self(poses, ids)
-        codes = mean + torch.randn_like(mean) * (0.5 * logvar).exp()
-        return per_frame(codes, ids), kl_to_standard_normal(mean[present], logvar[present])
+        kl = kl_to_standard_normal(mean[present], logvar[present], mean_over=0)
+        return per_frame(reparameterize(mean, logvar), ids), kl

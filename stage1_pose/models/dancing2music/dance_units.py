@@ -222,19 +222,3 @@ def warp_units(units: np.ndarray, grid: np.ndarray, num_frames: int,
     q = unit_beats[k] + (unit_beats[k + 1] - unit_beats[k]) * tau
     return sample_frames_smooth(flat, q)
 
-
-def beats_from_features(features: np.ndarray, fps: float) -> np.ndarray:
-    """Beat positions (fractional frames) of a song from its ``dancing2music`` features ``[T, 28]``.
-
-    For callers that have only the features: the positive part of the delta-RMS channel (column 27) is an onset
-    envelope at the pose frame rate, given to librosa's dynamic-programming beat tracker. Tracking on the audio
-    itself (:func:`stage1_pose.audio.beat_times`) is more precise and preferred when the waveform is at hand.
-    """
-    import librosa
-
-    onset = np.maximum(np.asarray(features, dtype=np.float64)[:, 27], 0.0)
-    if not onset.any():
-        raise DancesynthError("The song's loudness never rises, so it has no beats to dance to; use a song "
-                              "with audible rhythm.")
-    _, beats = librosa.beat.beat_track(onset_envelope=onset, sr=float(fps), hop_length=1, units="frames")
-    return np.asarray(beats, dtype=np.float64)

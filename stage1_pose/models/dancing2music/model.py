@@ -4,15 +4,15 @@ Training has two phases driven by one ``training_step`` (the phase follows the e
 :attr:`Dancing2MusicConfig.decomp_epochs`):
 
 * Decomposition (Sec. 3.1): every training window is cut at its kinematic beats into dance units
-  (:mod:`stage1_pose.models.dancing2music.dance_units`, 32 frames, 4 beats at fixed frames). The DU-VAE learns them with an
-  initial-pose encoder ``E_ini`` (MLP, first frame -> z_ini), a movement encoder ``E_mov`` (GRU -> z_mov) and a
-  unit decoder ``G_uni`` (GRU), trained with Eq. 3-5 (L1 reconstruction, KL on both latents, shift
+  (:mod:`stage1_pose.models.dancing2music.dance_units`, 32 frames, 4 beats at fixed frames). The DU-VAE learns
+  them with an initial-pose encoder ``E_ini`` (MLP, first frame -> z_ini), a movement encoder ``E_mov``
+  (GRU -> z_mov) and a unit decoder ``G_uni`` (GRU), trained with Eq. 3-5 (L1 reconstruction, KL on both latents, shift
   reconstruction). The music style classifier (GRU over the 28-d features -> style logits; its last hidden state
   is the style feature s) is trained alongside on the windows' style labels.
 * Composition (Sec. 3.2): runs of 3-5 consecutive units are encoded to z_mov sequences by the frozen ``E_mov``.
   MM-GAN: movement-to-dance encoder ``E_mtd`` (GRU, VAE head) -> z_dan, style-to-dance encoder ``E_std``
   (MLP on s and noise) -> z~_dan, recurrent dance decoder ``G_dan`` (GRU) -> z_mov sequence, movement
-  discriminator ``D_mov`` conditioned on the units' audio, dance-code discriminator ``D_dan``, style regressor
+  discriminator ``D_mov`` conditioned on the units' music features, dance-code discriminator ``D_dan``, style regressor
   ``E_sty``; Eq. 6-10.
 
 Generation (Sec. 3.3, Eq. 11) composes movement codes from the song's style, decodes units recurrently (each
@@ -20,7 +20,8 @@ unit starts from the previous unit's last frame, re-encoded by ``E_ini``) and wa
 
 Poses are all 25 BODY_25 joints in model coordinates (:func:`dancesynth.core.skeleton.normalize`, unit = torso
 length), flattened to 50 numbers per frame; the paper's 14-joint subset is not used, so generated dances have
-feet and face points. Audio is ``[B, T, 28]`` standardised ``dancing2music`` features, one row per pose frame.
+feet and face points. Music is ``[B, T, 28]`` standardised ``dancing2music`` features, one row per pose frame,
+and the song's beats ``[B, T]`` (bool beat frames), which the beat warper follows.
 """
 
 from __future__ import annotations
@@ -34,11 +35,12 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from stage1_pose.models.dancing2music import dance_units as du
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.motion import kinematic_beats
-from stage1_pose.models.base import Batch, Stage1Method
 from dancesynth.core.skeleton import NUM_JOINTS, ROOT
+from stage1_pose.models.base import Batch, Stage1Method
+from stage1_pose.models.dancing2music import dance_units as du
+from stage1_pose.models.gaussian import kl_to_standard_normal, reparameterize
 
 POSE_DIM = NUM_JOINTS * 2
 PHASES = ("decomposition", "composition")
@@ -66,10 +68,10 @@ class Dancing2MusicConfig:
     Test time: units whose motion is below ``redraw_motion`` times the real units' mean motion are drawn again,
     up to ``redraw_tries`` draws (the authors' code redraws until motion exceeds a threshold); ``redraw_motion`` 0
     switches redrawing off. The beat warper aligns the generated units' kinematic beats with the music beats
-    (:func:`stage1_pose.models.dancing2music.dance_units.align_beats`), speeding up or slowing down a beat interval by at most
-    ``warp_stretch``; 1 puts the normalised beat frames on the music beats. ``beat_accent`` > 0 makes the units
-    decelerate on every music beat (:func:`stage1_pose.models.dancing2music.dance_units.warp_units`); ``warp_stretch`` 1 and
-    ``beat_accent`` 0 are the paper's warper.
+    (:func:`stage1_pose.models.dancing2music.dance_units.align_beats`), speeding up or slowing down a beat
+    interval by at most ``warp_stretch``; 1 puts the normalised beat frames on the music beats. ``beat_accent`` > 0
+    makes the units decelerate on every music beat (:func:`stage1_pose.models.dancing2music.dance_units.warp_units`);
+    ``warp_stretch`` 1 and ``beat_accent`` 0 are the paper's warper.
     """
 
     feature_dim: int = 28
@@ -128,18 +130,9 @@ class Dancing2MusicConfig:
         return DANCING2MUSIC_PRESETS[name]
 
 
-# Sec. 4 of the paper: single-layer GRUs of 1024, 3-layer MLP encoders, z_ini 10, z_mov 512, z_dan 512, units of
-# 32 frames with 4 beats, 3-5 units per composition, Adam 1e-4 (0.5, 0.999), batch 512. The paper gives no
-# epoch counts; these are ours.
+# The paper's sizes and weights (Sec. 4); it gives no epoch counts, these are ours.
 _PAPER = Dancing2MusicConfig()
-# CPU-sized: narrow networks and a 30x learning rate so both phases learn within minutes; movements read as
-# displacements at 20x scale (with raw poses and 80 epochs the DU-VAE reconstructed units with a sixth of the real
-# motion). After 400 DU-VAE steps on the demo dataset, units decoded from prior codes moved 0.23 (lr 1e-3), 0.44
-# (3e-3) and 0.41 (1e-2) times as much as real units; at 3e-3 180 + 240 epochs gave dances 1.5x as fast as
-# 240 + 240 epochs at 1e-3 and train in 16.4 minutes on one core (the 480 epochs took 20.3 the same day).
-# Its warper also aligns the units' detected kinematic beats and accents the music beats: on the demo's held-out
-# songs that raised the beat hit rate from 0.43 (the paper's warper) to 0.73, real dances 0.65
-# (benchmarks/bench_dancing2music.py).
+# CPU-sized, with the learning rate, movement scale and beat warper that made dances move on the beat in minutes.
 _SMALL = Dancing2MusicConfig(gru_hidden=128, mlp_hidden=128, z_mov=32, z_dan=32, noise_dim=16, lr=3e-3,
                              batch_size=32, epochs=420, decomp_epochs=180, relative_movement=True, motion_scale=20.0,
                              warp_stretch=2.0, beat_accent=0.3)
@@ -160,17 +153,6 @@ def mlp(sizes: Sequence[int], layer_norm: bool = False) -> nn.Sequential:
             layers += [nn.LayerNorm(b)] if layer_norm else []
             layers.append(nn.LeakyReLU(0.2))
     return nn.Sequential(*layers)
-
-
-def reparameterize(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
-    """A sample of N(mu, exp(logvar)) that gradients flow through."""
-    return mu + torch.randn_like(mu) * torch.exp(0.5 * logvar)
-
-
-def kl_to_standard_normal(mu: torch.Tensor, logvar: torch.Tensor) -> torch.Tensor:
-    """KL(N(mu, exp(logvar)) || N(0, I)), averaged over latent dimensions and batch (so the weight λ_KL does
-    not depend on the latent size)."""
-    return 0.5 * (mu.square() + logvar.exp() - 1.0 - logvar).mean()
 
 
 def shift_root(units: torch.Tensor, shift: torch.Tensor) -> torch.Tensor:
@@ -254,7 +236,7 @@ class UnitDecoder(nn.Module):
         return anchor[:, None] + moves - moves[:, :1]
 
 
-class StyleClassifier(nn.Module):
+class MusicStyleClassifier(nn.Module):
     """Music style classifier: features ``[N, T, 28]`` -> (logits ``[N, styles]``, style feature s ``[N, 30]``)."""
 
     def __init__(self, feature_dim: int, hidden: int, num_styles: int) -> None:
@@ -262,8 +244,8 @@ class StyleClassifier(nn.Module):
         self.gru = nn.GRU(feature_dim, hidden, batch_first=True)
         self.head = nn.Linear(hidden, num_styles)
 
-    def forward(self, audio: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        s = self.gru(audio)[1][0]
+    def forward(self, features: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        s = self.gru(features)[1][0]
         return self.head(s), s
 
 
@@ -279,7 +261,7 @@ class MovementToDanceEncoder(nn.Module):
         return self.head(self.gru(z_movs)[1][0]).chunk(2, dim=-1)
 
 
-class DanceDecoder(nn.Module):
+class DanceToMovementDecoder(nn.Module):
     """G_dan: z_dan ``[N, z_dan]`` -> z_mov sequence ``[N, n, z_mov]`` (GRU started from z_dan, reading z_dan and
     its own previous output at every step)."""
 
@@ -313,21 +295,21 @@ class StyleToDanceEncoder(nn.Module):
 
 
 class MovementDiscriminator(nn.Module):
-    """D_mov: (z_mov sequence ``[N, n, z_mov]``, units' audio ``[N, n, 32, 28]``) -> logit ``[N]``.
+    """D_mov: (z_mov sequence ``[N, n, z_mov]``, units' music features ``[N, n, 32, 28]``) -> logit ``[N]``.
 
-    Each unit's audio is summarised by a GRU; a GRU runs over (z_mov, audio summary) pairs and 5 FC layers with
+    Each unit's music is summarised by a GRU; a GRU runs over (z_mov, music summary) pairs and 5 FC layers with
     layer normalisation judge its last state.
     """
 
-    def __init__(self, z_mov: int, feature_dim: int, audio_hidden: int, hidden: int) -> None:
+    def __init__(self, z_mov: int, feature_dim: int, music_hidden: int, hidden: int) -> None:
         super().__init__()
-        self.audio_gru = nn.GRU(feature_dim, audio_hidden, batch_first=True)
-        self.seq_gru = nn.GRU(z_mov + audio_hidden, hidden, batch_first=True)
+        self.audio_gru = nn.GRU(feature_dim, music_hidden, batch_first=True)
+        self.seq_gru = nn.GRU(z_mov + music_hidden, hidden, batch_first=True)
         self.net = mlp([hidden] * 5 + [1], layer_norm=True)
 
-    def forward(self, z_movs: torch.Tensor, audio_units: torch.Tensor) -> torch.Tensor:
-        n, u = audio_units.shape[:2]
-        a = self.audio_gru(audio_units.flatten(0, 1))[1][0].view(n, u, -1)
+    def forward(self, z_movs: torch.Tensor, feature_units: torch.Tensor) -> torch.Tensor:
+        n, u = feature_units.shape[:2]
+        a = self.audio_gru(feature_units.flatten(0, 1))[1][0].view(n, u, -1)
         return self.net(self.seq_gru(torch.cat([z_movs, a], dim=-1))[1][0]).squeeze(-1)
 
 
@@ -341,7 +323,6 @@ class Dancing2MusicMethod(Stage1Method):
 
     method_name = "dancing2music"
     feature_kind = "dancing2music"
-    uses_beats = True
 
     def __init__(self, config: Dancing2MusicConfig) -> None:
         super().__init__(config)
@@ -349,9 +330,9 @@ class Dancing2MusicMethod(Stage1Method):
         self.e_ini = InitialPoseEncoder(c.mlp_hidden, c.z_ini)
         self.e_mov = MovementEncoder(c.gru_hidden, c.z_mov, c.relative_movement, c.motion_scale)
         self.g_uni = UnitDecoder(c.gru_hidden, c.z_ini, c.z_mov, scale=c.motion_scale)
-        self.style = StyleClassifier(c.feature_dim, c.style_hidden, c.num_styles)
+        self.style = MusicStyleClassifier(c.feature_dim, c.style_hidden, c.num_styles)
         self.e_mtd = MovementToDanceEncoder(c.z_mov, c.gru_hidden, c.z_dan)
-        self.g_dan = DanceDecoder(c.z_dan, c.gru_hidden, c.z_mov)
+        self.g_dan = DanceToMovementDecoder(c.z_dan, c.gru_hidden, c.z_mov)
         self.e_std = StyleToDanceEncoder(c.style_hidden, c.noise_dim, c.mlp_hidden, c.z_dan)
         self.e_sty = mlp([c.z_dan, c.mlp_hidden, c.mlp_hidden, c.style_hidden])
         self.d_mov = MovementDiscriminator(c.z_mov, c.feature_dim, c.style_hidden, c.mlp_hidden)
@@ -398,8 +379,8 @@ class Dancing2MusicMethod(Stage1Method):
     # --- data: windows -> units -------------------------------------------------------------------------------
 
     def window_runs(self, poses: np.ndarray) -> list[list[np.ndarray]]:
-        """Unit runs (``[n, 5]`` beat frames each, :func:`stage1_pose.models.dancing2music.dance_units.unit_runs`) of every window of
-        ``[B, T, 25, 2]`` model-coordinate poses; also updates the running beat interval."""
+        """Unit runs (``[n, 5]`` beat frames each, :func:`stage1_pose.models.dancing2music.dance_units.unit_runs`)
+        of every window of ``[B, T, 25, 2]`` model-coordinate poses; also updates the running beat interval."""
         c = self.config
         runs = []
         for window in poses:
@@ -433,6 +414,7 @@ class Dancing2MusicMethod(Stage1Method):
         anchor = flat[:, 0]
         recon = (F.l1_loss(self.g_uni(z_ini, reparameterize(mu_m, lv_m), anchor), flat)
                  + F.l1_loss(self.g_uni.init_pose(z_ini), anchor))
+        # KL averaged over latent numbers and batch, so the weight λ_KL does not depend on the latent size.
         kl = kl_to_standard_normal(mu_i, lv_i) + kl_to_standard_normal(mu_m, lv_m)
         # A relative movement encoder subtracts the unit's first frame, which cancels a whole-unit shift exactly:
         # its code for the shifted unit is the one just computed, so a second pass (a tenth of a training step)
@@ -445,7 +427,7 @@ class Dancing2MusicMethod(Stage1Method):
         return {"recon": recon, "kl": kl, "shift": shift, "total": recon + c.w_kl * kl + c.w_shift * shift}
 
     def _decomposition_step(self, batch: Batch) -> dict[str, float]:
-        logits, _ = self.style(batch.audio)
+        logits, _ = self.style(batch.features)
         style_loss = F.cross_entropy(logits, batch.style)
         self.optimize("style", style_loss)
         logs = {"style_ce": style_loss.item(),
@@ -465,9 +447,9 @@ class Dancing2MusicMethod(Stage1Method):
 
     def _composition_sequences(self, batch: Batch) -> tuple[torch.Tensor, torch.Tensor] | None:
         """Runs of n consecutive units (n drawn in min_units..max_units, lowered to what the windows have):
-        poses ``[N, n, 32, 25, 2]`` and audio ``[N, n, 32, 28]``, or None when no window has min_units."""
+        poses ``[N, n, 32, 25, 2]`` and music features ``[N, n, 32, 28]``, or None when no window has min_units."""
         c = self.config
-        poses, audio = batch.poses.detach().cpu().numpy(), batch.audio.detach().cpu().numpy()
+        poses, features = batch.poses.detach().cpu().numpy(), batch.features.detach().cpu().numpy()
         runs = [(k, r) for k, rs in enumerate(self.window_runs(poses)) for r in rs if len(r) >= c.min_units]
         if not runs:
             return None
@@ -475,37 +457,37 @@ class Dancing2MusicMethod(Stage1Method):
         picked = [(k, r[s:s + n]) for k, r in runs if len(r) >= n for s in [int(torch.randint(len(r) - n + 1, ()))]]
         dev = batch.poses.device
         p = torch.from_numpy(np.stack([du.cut_units(poses[k], r) for k, r in picked])).to(dev)
-        a = torch.from_numpy(np.stack([du.cut_units(audio[k], r) for k, r in picked])).to(dev)
-        return p, a
+        f = torch.from_numpy(np.stack([du.cut_units(features[k], r) for k, r in picked])).to(dev)
+        return p, f
 
-    def style_feature(self, audio_units: torch.Tensor) -> torch.Tensor:
+    def style_feature(self, feature_units: torch.Tensor) -> torch.Tensor:
         """Style feature s ``[N, style_hidden]`` of the music under ``[N, n, 32, 28]`` units."""
-        return self.style(audio_units.flatten(1, 2))[1]
+        return self.style(feature_units.flatten(1, 2))[1]
 
     def _composition_step(self, batch: Batch) -> dict[str, float]:
         c = self.config
         seqs = self._composition_sequences(batch)
         if seqs is None:
             return {"sequences": 0.0}
-        units, audio = seqs
+        units, music = seqs
         n_seq, n = units.shape[:2]
         with torch.no_grad():
             z_mov = self.e_mov(units.flatten(0, 1).flatten(2))[0].view(n_seq, n, -1)
-            s = self.style_feature(audio)
+            s = self.style_feature(music)
         mu, logvar = self.e_mtd(z_mov)
         z_dan = reparameterize(mu, logvar)
         z_dan_music = self.e_std(s, torch.randn(n_seq, c.noise_dim, device=units.device))
         z_mov_hat, z_mov_music = self.g_dan(z_dan, n), self.g_dan(z_dan_music, n)
 
-        d_loss = 0.5 * (_bce(self.d_mov(z_mov_hat.detach(), audio), 1.0)
-                        + _bce(self.d_mov(z_mov_music.detach(), audio), 0.0)
+        d_loss = 0.5 * (_bce(self.d_mov(z_mov_hat.detach(), music), 1.0)
+                        + _bce(self.d_mov(z_mov_music.detach(), music), 0.0)
                         + _bce(self.d_dan(z_dan.detach()).squeeze(-1), 1.0)
                         + _bce(self.d_dan(z_dan_music.detach()).squeeze(-1), 0.0))
         self.optimize("disc", d_loss)
 
         recon = F.l1_loss(z_mov_hat, z_mov)
         style = (self.e_sty(z_dan) - s).abs().mean() + (self.e_sty(z_dan_music) - s).abs().mean()
-        adv_mov = _bce(self.d_mov(z_mov_music, audio), 1.0)
+        adv_mov = _bce(self.d_mov(z_mov_music, music), 1.0)
         adv_dan = _bce(self.d_dan(z_dan_music).squeeze(-1), 1.0)
         kl = kl_to_standard_normal(mu, logvar)
         total = recon + c.w_style * style + c.w_adv * (adv_mov + adv_dan) + c.w_kl * kl
@@ -530,18 +512,18 @@ class Dancing2MusicMethod(Stage1Method):
         return torch.randn(shape, generator=generator,
                            device=device if generator is None else generator.device).to(device)
 
-    def movement_codes(self, audio_units: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
-        """Movement codes ``[n, z_mov]`` for ``[n, 32, 28]`` units of a song's audio (n <= max_units): z~_dan from
+    def movement_codes(self, feature_units: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
+        """Movement codes ``[n, z_mov]`` for ``[n, 32, 28]`` units of a song's features (n <= max_units): z~_dan from
         their music's style (E_std) decoded by G_dan. The ablation, and a model saved before its composition
         phase trained (e.g. previews during decomposition), draws them from the DU-VAE prior."""
         c = self.config
         if not self.composes:
-            return self._randn((len(audio_units), c.z_mov), generator)
-        s = self.style_feature(audio_units[None])
-        return self.g_dan(self.e_std(s, self._randn((1, c.noise_dim), generator)), len(audio_units))[0]
+            return self._randn((len(feature_units), c.z_mov), generator)
+        s = self.style_feature(feature_units[None])
+        return self.g_dan(self.e_std(s, self._randn((1, c.noise_dim), generator)), len(feature_units))[0]
 
-    def dance_units(self, audio_units: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
-        """Eq. 11: units ``[n, 32, 25, 2]`` for ``[n, 32, 28]`` audio units, decoded one after another; the first
+    def dance_units(self, feature_units: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
+        """Eq. 11: units ``[n, 32, 25, 2]`` for ``[n, 32, 28]`` feature units, decoded one after another; the first
         starts from a prior sample of z_ini, each next one from the previous unit's last frame (encoded by E_ini).
 
         Units are drawn in groups (max_units composed together, or one at a time from the prior). As in the
@@ -554,10 +536,10 @@ class Dancing2MusicMethod(Stage1Method):
         floor = c.redraw_motion * float(self.unit_motion)
         size = c.max_units if self.composes else 1
         groups = []
-        for start in range(0, len(audio_units), size):
+        for start in range(0, len(feature_units), size):
             best, best_motion = None, -1.0
             for _ in range(c.redraw_tries):
-                codes = self.movement_codes(audio_units[start:start + size], generator)
+                codes = self.movement_codes(feature_units[start:start + size], generator)
                 units = self._decode_group(z_ini, anchor, codes)
                 motion = unit_motion(units)
                 if motion > best_motion:
@@ -567,7 +549,7 @@ class Dancing2MusicMethod(Stage1Method):
             groups.append(best)
             anchor = best[-1:, -1]
             z_ini = self.e_ini(anchor)[0]
-        return torch.cat(groups).view(len(audio_units), du.UNIT_FRAMES, NUM_JOINTS, 2)
+        return torch.cat(groups).view(len(feature_units), du.UNIT_FRAMES, NUM_JOINTS, 2)
 
     def _decode_group(self, z_ini: torch.Tensor, anchor: torch.Tensor | None, z_movs: torch.Tensor) -> torch.Tensor:
         """Units ``[n, 32, 50]`` from ``[n, z_mov]`` codes, continuing from ``anchor`` (``[1, 50]`` or None)."""
@@ -580,32 +562,29 @@ class Dancing2MusicMethod(Stage1Method):
         return torch.stack(units)
 
     @torch.no_grad()
-    def generate(self, audio: torch.Tensor, generator: torch.Generator | None = None,
-                 beat_frames: Sequence[np.ndarray] | None = None) -> torch.Tensor:
-        """``[B, T, 28]`` features -> ``[B, T, 25, 2]`` model-coordinate dances.
+    def generate(self, features: torch.Tensor, beats: torch.Tensor,
+                 generator: torch.Generator | None = None) -> torch.Tensor:
+        """``[B, T, 28]`` features and ``[B, T]`` beat flags -> ``[B, T, 25, 2]`` model-coordinate dances.
 
-        ``beat_frames`` gives each song's beats as fractional pose-frame indices (seconds x fps, e.g. from
-        :func:`stage1_pose.audio.beat_times`); without it beats are tracked on the features' loudness channel
-        (:func:`stage1_pose.models.dancing2music.dance_units.beats_from_features`). Noise (the initial pose, the style-to-dance noise)
-        is drawn from ``generator``.
+        The beat warper lays the units on each song's beat frames; a song needs at least two. Noise (the initial
+        pose, the style-to-dance noise) is drawn from ``generator``.
         """
-        b, t = audio.shape[:2]
+        b, t = features.shape[:2]
         out = []
         for i in range(b):
-            feats = audio[i].cpu().numpy()
-            beats = (du.beats_from_features(feats, self.config.fps) if beat_frames is None
-                     else np.asarray(beat_frames[i], dtype=np.float64))
-            grid = du.beat_grid(beats, t, du.beat_stride(beats, float(self.beat_interval)))
+            feats = features[i].cpu().numpy()
+            music_beats = torch.nonzero(beats[i]).flatten().cpu().numpy().astype(np.float64)
+            grid = du.beat_grid(music_beats, t, du.beat_stride(music_beats, float(self.beat_interval)))
             n = du.units_needed(grid)
             # Unit i spans grid beats 4i..4i+4; past the grid's end the same interval continues.
             extra = np.arange(1, 4 * n + 2 - len(grid)) * float(np.median(np.diff(grid)))
             full = np.concatenate([grid, grid[-1] + extra])
             spans = np.stack([full[4 * k:4 * k + 5] for k in range(n)])
-            audio_units = torch.from_numpy(du.cut_units(feats, spans)).to(audio.device)
-            units = self.dance_units(audio_units, generator).cpu().numpy()
+            feature_units = torch.from_numpy(du.cut_units(feats, spans)).to(features.device)
+            units = self.dance_units(feature_units, generator).cpu().numpy()
             unit_beats = None  # the paper's warper: the normalised beat frames
             if self.config.warp_stretch > 1:
                 moves = kinematic_beats(absolute_positions(units.reshape(-1, NUM_JOINTS, 2)), self.config.fps)
                 unit_beats = du.align_beats(moves, len(grid), self.config.warp_stretch)
             out.append(torch.from_numpy(du.warp_units(units, grid, t, unit_beats, self.config.beat_accent)))
-        return torch.stack(out).to(audio.device)
+        return torch.stack(out).to(features.device)

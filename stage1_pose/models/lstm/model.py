@@ -1,7 +1,7 @@
-"""The LSTM baseline of Dance Revolution's comparison (after Shlizerman et al. 2018): audio features ->
-stacked LSTM -> poses, one pose per frame, deterministic, trained with L1.
+"""The LSTM baseline of Dance Revolution's comparison (after Shlizerman et al. 2018): music features ->
+stacked LSTM -> poses, one pose per frame, deterministic, trained with L1; it does not read the beats.
 
-Shapes: audio ``[B, T, feature_dim]`` standardised features; poses ``[B, T, 25, 2]`` model coordinates.
+Shapes: features ``[B, T, feature_dim]`` standardised features; poses ``[B, T, 25, 2]`` model coordinates.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ import torch.nn.functional as F
 from torch import nn
 
 from dancesynth.core.errors import DancesynthError
-from stage1_pose.models.base import Batch, Stage1Method
 from dancesynth.core.skeleton import NUM_JOINTS
+from stage1_pose.models.base import Batch, Stage1Method
 
 
 @dataclass(frozen=True)
@@ -46,7 +46,7 @@ LSTM_PRESETS: dict[str, LSTMConfig] = {
 
 
 class LSTMBaseline(Stage1Method):
-    """Audio features -> LSTM -> linear -> poses; one optimizer ``main``."""
+    """Music features -> LSTM -> linear -> poses; one optimizer ``main``."""
 
     method_name = "lstm"
     feature_kind = "dance_revolution"
@@ -57,20 +57,21 @@ class LSTMBaseline(Stage1Method):
                             dropout=config.dropout if config.layers > 1 else 0.0)
         self.out = nn.Linear(config.hidden, NUM_JOINTS * 2)
 
-    def forward(self, audio: torch.Tensor) -> torch.Tensor:
+    def forward(self, features: torch.Tensor) -> torch.Tensor:
         """``[B, T, feature_dim]`` -> ``[B, T, 25, 2]``."""
-        h, _ = self.lstm(audio)
-        return self.out(h).reshape(audio.shape[0], audio.shape[1], NUM_JOINTS, 2)
+        h, _ = self.lstm(features)
+        return self.out(h).reshape(features.shape[0], features.shape[1], NUM_JOINTS, 2)
 
     def configure_optimizers(self) -> dict[str, torch.optim.Optimizer]:
         return {"main": torch.optim.Adam(self.parameters(), lr=self.config.lr)}
 
     def training_step(self, batch: Batch, epoch: int) -> dict[str, float]:
-        loss = F.l1_loss(self(batch.audio), batch.poses)
+        loss = F.l1_loss(self(batch.features), batch.poses)
         self.optimize("main", loss)
         return {"l1": loss.item()}
 
     @torch.no_grad()
-    def generate(self, audio: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
-        """Deterministic: ``generator`` is ignored."""
-        return self(audio)
+    def generate(self, features: torch.Tensor, beats: torch.Tensor,
+                 generator: torch.Generator | None = None) -> torch.Tensor:
+        """Deterministic: ``beats`` and ``generator`` are ignored."""
+        return self(features)

@@ -8,8 +8,9 @@ self-attention, deciding whether dance and music belong together.
 Objective (Eq. 7): adversarial (both D) + w_P pose perceptual (ST-GCN, Eq. 1) + w_FM feature matching on the
 global D + w_L1 L1, plus a WGAN-GP gradient penalty and the attention penalty in the global D's loss.
 
-Shapes: audio ``[B, T, S]`` raw samples, S = ``samples_per_frame`` per pose frame; poses ``[B, T, 25, 2]``
-model coordinates (:func:`dancesynth.core.skeleton.normalize`).
+Shapes: audio ``[B, T, S]`` raw samples (the ``waveform`` features), S = ``samples_per_frame`` per pose frame;
+poses ``[B, T, 25, 2]`` model coordinates (:func:`dancesynth.core.skeleton.normalize`). The method does not read
+the beats.
 """
 
 from __future__ import annotations
@@ -23,10 +24,10 @@ import torch.nn.functional as F
 from torch import nn
 
 from dancesynth.core.errors import DancesynthError
-from stage1_pose.models.base import Batch, Stage1Method
-from stage1_pose.models.ren.variety import best_of, held_noise
-from stage1_pose.models.ren.perceptual import PosePerceptualLoss
 from dancesynth.core.skeleton import NUM_JOINTS
+from stage1_pose.models.base import Batch, Stage1Method
+from stage1_pose.models.ren.perceptual import PosePerceptualLoss
+from stage1_pose.models.ren.variety import best_of, held_noise
 
 ABLATIONS = ("l1", "global_d", "local_d", "full")
 
@@ -123,12 +124,7 @@ def _ablation(config: RenConfig, row: str) -> RenConfig:
 
 
 _PAPER = RenConfig()
-# CPU-sized: 3-s windows, narrow layers, same structure as the paper. Trained for minutes with the paper's
-# per-frame noise and L1 weight 200 the generator ignored its noise (seeds 0.5 px apart) and moved at a third
-# of real speed; best of 4 noise draws held over a window (45 frames, std 1) and L1 weight 50 give dances 45-58 px
-# apart at 50-77 % of real speed in the same 20 minutes (README, Ren et al.). The anti-jitter options stay off:
-# head_kernel=9, w_velocity=1000 did not lower held-out jerk within 7 epochs. About 105 s per epoch of the 40-song
-# built-in dataset on one core: 10 epochs in under 20 minutes.
+# CPU-sized (10 epochs < 20 min), with held noise, best of 4 draws and L1 weight 50 so the seed chooses the dance.
 _SMALL = RenConfig(window_frames=45, audio_channels=(8, 16, 32, 32), code_dim=64, gru_hidden=64,
                    mlp_hidden=128, mlp_blocks=2, dropout=0.1, d_channels=16, d_embed=64, attention_dim=16,
                    batch_size=8, epochs=10, noise_std=1.0, noise_frames=45, variety_samples=4, w_l1=50.0)
@@ -168,7 +164,7 @@ class AudioEncoder(nn.Module):
         return self.fc(self.convs(pieces.unsqueeze(1)).flatten(1))
 
 
-class MusicEncoder(nn.Module):
+class WaveformMusicEncoder(nn.Module):
     """``[B, T, S]`` audio -> ``[B, T, 2 * hidden]`` hidden states of a 2-layer bidirectional GRU over the
     per-frame codes."""
 
@@ -213,7 +209,8 @@ class RenGenerator(nn.Module):
 
     def __init__(self, config: RenConfig) -> None:
         super().__init__()
-        self.music = MusicEncoder(config.samples_per_frame, config.audio_channels, config.code_dim, config.gru_hidden)
+        self.music = WaveformMusicEncoder(config.samples_per_frame, config.audio_channels, config.code_dim,
+                                          config.gru_hidden)
         self.noise_gru = nn.GRU(config.noise_dim, config.noise_dim, batch_first=True)
         k = config.head_kernel
         if k < 1 or k % 2 == 0:
@@ -366,7 +363,7 @@ class GlobalContentDiscriminator(nn.Module):
         super().__init__()
         e = config.d_embed
         self.pose = CooccurrenceEncoder(config.d_channels, e)
-        self.music = MusicEncoder(config.samples_per_frame, config.audio_channels, config.code_dim, e // 2)
+        self.music = WaveformMusicEncoder(config.samples_per_frame, config.audio_channels, config.code_dim, e // 2)
         self.attention = StructuredSelfAttention(e, config.attention_dim, config.attention_hops)
         self.music_fc = nn.Linear(config.attention_hops * e, e)
         # "A small classifier composed of a 1D convolutional layer and a FC layer" over [F^M; F^P].
@@ -458,7 +455,7 @@ class RenMethod(Stage1Method):
 
     def training_step(self, batch: Batch, epoch: int) -> dict[str, float]:
         cfg = self.config
-        audio, real = batch.audio, batch.poses
+        audio, real = batch.features, batch.poses
         k, (b, t) = cfg.variety_samples, real.shape[:2]
         # The music is encoded once; the K noise draws share it as one batch of K x B clips.
         codes = self.generator.music(audio).repeat(k, 1, 1)
@@ -516,7 +513,9 @@ class RenMethod(Stage1Method):
         return logs
 
     @torch.no_grad()
-    def generate(self, audio: torch.Tensor, generator: torch.Generator | None = None) -> torch.Tensor:
-        """``[B, T, S]`` audio -> ``[B, T, 25, 2]``; the noise (hence the dance) is drawn from ``generator``."""
-        noise = self.sample_noise(audio.shape[0], audio.shape[1], audio.device, generator)
-        return self.generator(audio, noise)
+    def generate(self, features: torch.Tensor, beats: torch.Tensor,
+                 generator: torch.Generator | None = None) -> torch.Tensor:
+        """``[B, T, S]`` audio -> ``[B, T, 25, 2]``; the noise (hence the dance) is drawn from ``generator``;
+        ``beats`` are not used."""
+        noise = self.sample_noise(features.shape[0], features.shape[1], features.device, generator)
+        return self.generator(features, noise)

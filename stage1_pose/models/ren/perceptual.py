@@ -9,20 +9,21 @@ from __future__ import annotations
 
 import os
 from collections.abc import Sequence
-from dataclasses import asdict, replace
+from dataclasses import replace
 
 import torch
 import torch.nn.functional as F
 from torch.utils.data import DataLoader
-from tqdm import tqdm
 
-from dancesynth.core.checkpoint import load_checkpoint, save_checkpoint
-from stage1_pose.data.dataset import WindowDataset, collate
+from dancesynth.core.checkpoint import load_checkpoint
+from dancesynth.core.config import config_from_dict, config_to_dict
 from dancesynth.core.device import resolve_device
 from dancesynth.core.errors import DancesynthError
-from stage1_pose.registry import config_from_dict
-from stage1_pose.models.ren.stgcn import STGCN, STGCN_PRESETS, STGCNConfig
+from dancesynth.core.progress import track
+from dancesynth.core.runs import RunFolder
 from dancesynth.core.skeleton import ROOT
+from stage1_pose.data.dataset import WindowDataset, collate
+from stage1_pose.models.ren.stgcn import STGCN, STGCN_PRESETS, STGCNConfig
 
 CHECKPOINT_KIND = "stgcn"
 # The classifier reads poses only; raw waveform pieces are the audio feature that costs nothing to prepare.
@@ -95,25 +96,33 @@ def _accuracy(net: STGCN, loader: DataLoader, device: torch.device) -> float:
 
 def train_stgcn(data_dir: str | os.PathLike, out_dir: str | os.PathLike, preset: str = "small",
                 epochs: int | None = None, device: str = "auto", seed: int = 0,
-                progress: bool = True) -> dict[str, float]:
-    """Train the ST-GCN to classify the style of pose windows of the dataset in ``data_dir``; save it to
-    ``out_dir`` (``latest.safetensors`` + ``latest.json`` of kind ``stgcn``).
+                progress: bool = True, resume: bool = False) -> dict[str, float]:
+    """Train the ST-GCN to classify the style of pose windows of the dataset in ``data_dir`` into the run folder
+    ``out_dir`` (kind ``stgcn``, :class:`~dancesynth.core.runs.RunFolder`: a checkpoint and a ``metrics.csv``
+    row after every epoch, ``loss.png``). With ``resume`` the run continues exactly where its last checkpoint
+    left it, with its own preset and seed; ``epochs`` is the total (default: the preset's, or the run's).
 
     Windows are ``window_frames`` pose frames with 50 % overlap. Returns ``epochs``, ``train_accuracy`` and
     ``val_accuracy`` (fractions in [0, 1] of windows whose style is recognised; NaN when the dataset has
-    no validation clips).
+    no validation clips), which the final checkpoint's metadata also holds.
     """
-    if preset not in STGCN_PRESETS:
+    if not resume and preset not in STGCN_PRESETS:
         raise DancesynthError(f"Unknown ST-GCN preset {preset!r}; choose one of {', '.join(STGCN_PRESETS)}.")
-    cfg = STGCN_PRESETS[preset] if epochs is None else replace(STGCN_PRESETS[preset], epochs=epochs)
-    if cfg.epochs < 1:
-        raise DancesynthError(f"--epochs must be at least 1, got {cfg.epochs}.")
+    if epochs is not None and epochs < 1:
+        raise DancesynthError(f"--epochs must be at least 1, got {epochs}.")
     dev = resolve_device(device)
+    run = RunFolder(out_dir, CHECKPOINT_KIND, dev, resume=resume)
+    cfg = STGCN_PRESETS[preset] if run.meta is None else config_from_dict(STGCNConfig, run.meta["config"])
+    cfg = cfg if epochs is None else replace(cfg, epochs=epochs)
+    seed = seed if run.meta is None else int(run.meta["seed"])
     torch.manual_seed(seed)
     stride = max(1, cfg.window_frames // 2)
     train_set, val_set = (WindowDataset(data_dir, split, FEATURE_KIND, cfg.window_frames, stride,
                                         standardize=False, progress=progress) for split in ("train", "val"))
     styles = list(train_set.styles)
+    if run.meta is not None and run.meta["styles"] != styles:
+        raise DancesynthError(f"{data_dir} has the styles {styles}, but the run in {out_dir} learned "
+                              f"{run.meta['styles']}; resume it with its own dataset.")
     cfg = cfg.with_classes(len(styles))
     if len(train_set) == 0:
         raise DancesynthError(f"The dataset {data_dir} has no training window of {cfg.window_frames} frames; "
@@ -124,15 +133,27 @@ def train_stgcn(data_dir: str | os.PathLike, out_dir: str | os.PathLike, preset:
 
     net = STGCN(cfg).to(dev)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
-    for _ in tqdm(range(cfg.epochs), desc="train-stgcn", unit="epoch", disable=not progress):
+    optimizers = {"adam": opt}
+    start = step = 0
+    if run.meta is not None:
+        meta, extra = run.restore(net, optimizers)
+        start, step = meta["epoch"], meta["step"]
+        shuffle.set_state(extra["shuffle"])  # the epoch's data order and augmentation continue from here
+    base_meta = {"config": config_to_dict(cfg), "styles": styles, "seed": seed, "data": str(data_dir)}
+    for epoch in track(range(start, cfg.epochs), desc="train-stgcn", unit="epoch", disable=not progress):
         net.train()
+        total = 0.0
         for batch in train_loader:
             loss = F.cross_entropy(net(_augment(batch.poses, shuffle).to(dev)), batch.style.to(dev))
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
+            total += loss.item()
+        step += len(train_loader)
+        run.log("metrics", {"epoch": epoch, "step": step, "loss": total / len(train_loader)})
+        run.save(net, {**base_meta, "epoch": epoch + 1, "step": step}, optimizers, {"shuffle": shuffle.get_state()})
     train_acc, val_acc = (_accuracy(net, loader, dev) for loader in eval_loaders)
-    meta = {"kind": CHECKPOINT_KIND, "config": asdict(cfg), "styles": styles, "epoch": cfg.epochs,
-            "train_accuracy": train_acc, "val_accuracy": val_acc}
-    save_checkpoint(out_dir, net, meta)
+    run.update_meta({"train_accuracy": train_acc, "val_accuracy": val_acc})
+    run.plot("loss.png")
+    run.close()
     return {"epochs": cfg.epochs, "train_accuracy": train_acc, "val_accuracy": val_acc}

@@ -9,12 +9,12 @@ import pytest
 import soundfile
 import torch
 
-from stage1_pose.audio import FEATURE_KINDS, feature_dim
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.skeleton import PoseSequence
 from stage1_pose.data.dataset import DanceDataset, WindowDataset, collate
 from stage1_pose.data.layout import Clip, clip_paths, create_layout, split_songs, write_beats, write_manifest
-from dancesynth.core.errors import DancesynthError
+from stage1_pose.features import FEATURE_KINDS, feature_dim
 from stage1_pose.models.base import Batch
-from dancesynth.core.skeleton import PoseSequence
 
 SR = 22050
 
@@ -89,11 +89,14 @@ def test_window_dataset_shapes_for_every_feature_kind(tmp_path, kind):
     assert len(train) == 2 * 5  # two 60-frame clips, windows at 0, 10, ..., 40
     item = train[3]
     dim = feature_dim(kind, 15)
-    assert item["audio"].shape == (20, dim) and item["poses"].shape == (20, 25, 2)
-    assert item["style"].dtype == torch.int64
+    assert item["features"].shape == (20, dim) and item["poses"].shape == (20, 25, 2)
+    assert item["style"].dtype == torch.int64 and item["start"] == 30
+    # The beats file's beats (0.25 s + 0.5 s k) on the window's frames 30..49: seconds 2.25, 2.75, 3.25.
+    assert item["beats"].dtype == torch.bool and torch.nonzero(item["beats"]).flatten().tolist() == [4, 11, 19]
     batch = collate([train[0], train[7]])
     assert isinstance(batch, Batch)
-    assert batch.audio.shape == (2, 20, dim) and batch.poses.shape == (2, 20, 25, 2)
+    assert batch.features.shape == (2, 20, dim) and batch.poses.shape == (2, 20, 25, 2)
+    assert batch.beats.shape == (2, 20) and batch.beats.dtype == torch.bool
     assert batch.style.tolist() == [0, 1]
     assert (tmp_path / "features" / kind / "stats.npz").is_file()
     full = np.concatenate([train.dataset.load_features(c, kind) for c in train.dataset.clips("train")])

@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 import soundfile
 
-from stage1_pose.data.dataset import DanceDataset
-from stage1_pose.data.importers import import_aistpp, import_openpose, load_aistpp_keypoints
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.openpose_io import save_openpose_folder
 from dancesynth.core.skeleton import COCO17_TO_BODY25, PoseSequence
+from stage1_pose.data.dataset import DanceDataset
+from stage1_pose.data.importers import import_aistpp, import_openpose, load_aistpp_keypoints
 
 SR = 22050
 

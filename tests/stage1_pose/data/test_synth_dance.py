@@ -5,21 +5,22 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stage1_pose.data.styles import STYLES
-from stage1_pose.data.synth_dance import FPS, HEIGHT, WIDTH, choreograph, synthesize_dance
 from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX
+from stage1_pose.data.layout import POSE_FPS
+from stage1_pose.data.styles import STYLES
+from stage1_pose.data.synth_dance import HEIGHT, WIDTH, choreograph, synthesize_dance
 
 
 def _dance(style: str, seed: int, bpm: float = 100.0, seconds: float = 20.0):
     beats = np.arange(0.3, seconds, 60.0 / bpm)
-    frames = int(seconds * FPS)
+    frames = int(seconds * POSE_FPS)
     return synthesize_dance(STYLES[style], beats, frames, np.random.default_rng(seed)), beats
 
 
 @pytest.mark.parametrize("style", sorted(STYLES))
 def test_pose_sequence_on_the_canvas(style):
     seq, _ = _dance(style, 0)
-    assert seq.keypoints.shape == (300, 25, 3) and seq.fps == FPS and (seq.width, seq.height) == (WIDTH, HEIGHT)
+    assert seq.keypoints.shape == (300, 25, 3) and seq.fps == POSE_FPS and (seq.width, seq.height) == (WIDTH, HEIGHT)
     assert np.all(seq.confidence == 1)
     assert np.all((seq.xy >= 0) & (seq.xy[..., 0] <= WIDTH)[..., None] & (seq.xy[..., 1] <= HEIGHT)[..., None])
 

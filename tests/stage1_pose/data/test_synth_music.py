@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stage1_pose.audio import beat_f_measure, beat_times
+from stage1_pose.beats import beat_f_measure, beat_times
+from stage1_pose.data.layout import SAMPLE_RATE
 from stage1_pose.data.styles import STYLES
-from stage1_pose.data.synth_music import BEATS_PER_BAR, SAMPLE_RATE, synthesize_song
+from stage1_pose.data.synth_music import BEATS_PER_BAR, synthesize_song
 
 
 @pytest.mark.parametrize("style", sorted(STYLES))

@@ -3,16 +3,22 @@ import dataclasses
 import pytest
 import torch
 
-# The machine is shared: one intra-op thread avoids OpenMP contention that makes tiny ops take milliseconds.
-torch.set_num_threads(1)
-
-from stage1_pose.audio import BEAT_COLUMN
 from dancesynth.core.errors import DancesynthError
 from stage1_pose.models.base import Batch
 from stage1_pose.models.dance_revolution.beat_clock import beat_phase
 from stage1_pose.models.dance_revolution.model import (
-    DanceRevolution, DanceRevolutionConfig, LSTMStepper, beat_flags, curriculum_p, joint_speeds, predicted_inputs,
-    sinusoidal_encoding, smooth_in_time)
+    DanceRevolution,
+    DanceRevolutionConfig,
+    LSTMStepper,
+    curriculum_p,
+    differentiable_joint_speeds,
+    predicted_inputs,
+    sinusoidal_encoding,
+    smooth_in_time,
+)
+
+# The machine is shared: one intra-op thread avoids OpenMP contention that makes tiny ops take milliseconds.
+torch.set_num_threads(1)
 
 TINY = DanceRevolutionConfig(feature_dim=12, d_model=16, heads=2, d_k=8, d_v=8, d_ff=32, layers=1, window=6,
                              dropout=0.0, lstm_hidden=32, lstm_layers=3, lam=0.5, q=3, lr=3e-3, window_frames=20)
@@ -39,45 +45,51 @@ def test_positional_encoding_any_length():
     torch.testing.assert_close(pe[:5], sinusoidal_encoding(5, 16))
 
 
+def no_beats(batch: int, frames: int) -> torch.Tensor:
+    return torch.zeros(batch, frames, dtype=torch.bool)
+
+
 def test_chunked_encoding_equals_whole_sequence_encoding():
     encoder = DanceRevolution(dataclasses.replace(TINY, layers=2)).encoder.eval()
-    audio = torch.randn(1, 101, 12)
+    features = torch.randn(1, 101, 12)
     with torch.no_grad():
-        whole = encoder(audio)
+        whole = encoder(features)
         for chunk in (10, 33, 101, 500):
-            torch.testing.assert_close(encoder.encode_chunked(audio, chunk), whole, rtol=1e-5, atol=1e-5)
+            torch.testing.assert_close(encoder.encode_chunked(features, chunk), whole, rtol=1e-5, atol=1e-5)
 
 
 def test_generate_shapes_seeds_and_length():
     model = DanceRevolution(TINY).eval()
-    audio = torch.randn(2, 37, 12)
-    a = model.generate(audio, torch.Generator().manual_seed(1))
-    b = model.generate(audio, torch.Generator().manual_seed(1))
-    c = model.generate(audio, torch.Generator().manual_seed(2))
+    features, beats = torch.randn(2, 37, 12), no_beats(2, 37)
+    a = model.generate(features, beats, torch.Generator().manual_seed(1))
+    b = model.generate(features, beats, torch.Generator().manual_seed(1))
+    c = model.generate(features, beats, torch.Generator().manual_seed(2))
     assert a.shape == (2, 37, 25, 2)
     assert torch.equal(a, b) and not torch.allclose(a, c)
 
 
-def song_with_beats(intervals: list[int], frames: int) -> torch.Tensor:
-    """``[1, frames, BEAT_COLUMN + 2]`` standardised features whose beat one-hot repeats ``intervals``."""
-    audio = torch.full((1, frames, BEAT_COLUMN + 2), -0.3)
+def song_with_beats(intervals: list[int], frames: int) -> tuple[torch.Tensor, torch.Tensor]:
+    """Beat flags ``[1, frames]`` repeating ``intervals``, and ``[1, frames, 12]`` standardised features with
+    a beat one-hot in column 0, as the paper's features have."""
+    beats = no_beats(1, frames)
     at, i = 0, 0
     while at < frames:
-        audio[0, at, BEAT_COLUMN] = 2.5
+        beats[0, at] = True
         at, i = at + intervals[i % len(intervals)], i + 1
-    return audio
+    features = torch.full((1, frames, 12), -0.3)
+    features[..., 0] = torch.where(beats, 2.5, -0.3)
+    return features, beats
 
 
 @pytest.mark.parametrize("code_dim, beat_phase_input", [(0, False), (3, False), (3, True)])
 def test_fused_lstm_runs_and_stepper_agree(code_dim, beat_phase_input):
     # Feeding the free-running outputs back as "ground truth" must reproduce them, whichever decoder inputs
     # the curriculum marks as predicted: nn.LSTM runs and per-frame fused steps are the same maths.
-    cfg = dataclasses.replace(TINY, feature_dim=BEAT_COLUMN + 2, code_dim=code_dim, beat_phase_input=beat_phase_input)
-    model = DanceRevolution(cfg).eval()
-    audio = song_with_beats([4, 7], 25)
-    z = model.encoder(audio.expand(2, -1, -1))
+    model = DanceRevolution(dataclasses.replace(TINY, code_dim=code_dim, beat_phase_input=beat_phase_input)).eval()
+    features, beats = song_with_beats([4, 7], 25)
+    z = model.encoder(features.expand(2, -1, -1))
     state = model.decoder.initial_state(2, z.device, torch.Generator().manual_seed(0))
-    extras = model.decoder_extras(audio.expand(2, -1, -1), torch.randn(2, 25, code_dim))
+    extras = model.decoder_extras(beats.expand(2, -1), torch.randn(2, 25, code_dim))
     assert extras.shape == (2, 25, code_dim + 2 * beat_phase_input)
     free = model.decoder.generate(z, state, extras)
     for p in (0, 2, 30):
@@ -88,10 +100,10 @@ def test_fused_lstm_runs_and_stepper_agree(code_dim, beat_phase_input):
 
 def test_int8_decoding_stays_close_to_fp32():
     model = DanceRevolution(TINY).eval()
-    audio = torch.randn(1, 30, 12)
-    exact = model.generate(audio, torch.Generator().manual_seed(0))
+    features, beats = torch.randn(1, 30, 12), no_beats(1, 30)
+    exact = model.generate(features, beats, torch.Generator().manual_seed(0))
     model.prepare_inference("int8")
-    fast = model.generate(audio, torch.Generator().manual_seed(0))
+    fast = model.generate(features, beats, torch.Generator().manual_seed(0))
     assert (fast - exact).abs().max() < 0.05 * exact.abs().max()
     with pytest.raises(DancesynthError, match="precision"):
         LSTMStepper(model.decoder.lstm, "int4")
@@ -103,7 +115,7 @@ def test_tiny_model_overfits_one_clip_with_curriculum():
     model._optimizers = model.configure_optimizers()
     t = torch.linspace(0, 6.28, 20)
     poses = torch.stack([torch.sin(t + j) for j in range(50)], dim=-1).reshape(1, 20, 25, 2) * 0.5
-    batch = Batch(torch.randn(1, 20, 12), poses, torch.zeros(1, dtype=torch.long))
+    batch = Batch(torch.randn(1, 20, 12), no_beats(1, 20), poses, torch.zeros(1, dtype=torch.long))
     losses = [model.training_step(batch, epoch=e // 30)["l1"] for e in range(120)]
     assert model.p == 1 and model.curriculum_state()["p"] == 1
     assert losses[-1] < losses[0] / 5
@@ -115,12 +127,12 @@ def two_way_dances(move: torch.Tensor, code_dim: int, speed_weight: float = 0.0)
     model = DanceRevolution(dataclasses.replace(TINY, code_dim=code_dim, code_frames=20, kl_weight=0.001,
                                                 speed_weight=speed_weight))
     model._optimizers = model.configure_optimizers()
-    audio = torch.randn(1, 20, 12).expand(2, -1, -1)
-    batch = Batch(audio, torch.stack([move, -move]), torch.zeros(2, dtype=torch.long))
+    features, beats = torch.randn(1, 20, 12).expand(2, -1, -1), no_beats(2, 20)
+    batch = Batch(features, beats, torch.stack([move, -move]), torch.zeros(2, dtype=torch.long))
     for _ in range(300):
         model.training_step(batch, epoch=100)  # p = 50: every input is the decoder's own output
     model.eval()
-    return [model.generate(audio[:1], torch.Generator().manual_seed(s))[0] for s in range(8)]
+    return [model.generate(features[:1], beats[:1], torch.Generator().manual_seed(s))[0] for s in range(8)]
 
 
 def test_choreography_code_makes_the_seed_choose_the_dance(mirrored_move, dances_one_way_or_the_other):
@@ -134,7 +146,7 @@ def test_speed_loss_keeps_the_dance_moving_when_its_direction_is_uncertain(mirro
     # The pose loss alone makes the decoder dance the mean of the two ways, close to standing still; the speed
     # loss asks for the real dances' speed whichever way the move goes.
     def speed(dance: torch.Tensor) -> float:
-        return joint_speeds(dance.reshape(1, len(dance), -1)).mean().item()
+        return differentiable_joint_speeds(dance.reshape(1, len(dance), -1)).mean().item()
 
     real = speed(mirrored_move)
     assert max(speed(d) for d in two_way_dances(mirrored_move, 0)) < 0.5 * real  # measured: 0.39-0.41
@@ -153,7 +165,7 @@ def test_joint_speeds_are_distances_per_frame_with_a_gradient_at_rest():
     poses = torch.zeros(1, 3, 25, 2)
     poses[0, 1:, 1] = torch.tensor([3.0, 4.0])  # joint 1 moves 5 units into frame 1, then rests
     poses.requires_grad_()
-    speeds = joint_speeds(poses.flatten(2))
+    speeds = differentiable_joint_speeds(poses.flatten(2))
     assert speeds.shape == (1, 2, 25)
     torch.testing.assert_close(speeds[0, :, 1], torch.tensor([5.0, 0.0]), atol=1e-3, rtol=0)
     speeds.sum().backward()
@@ -165,20 +177,17 @@ def test_speed_loss_and_free_bits_train_with_the_decoder():
     model = DanceRevolution(dataclasses.replace(TINY, code_dim=3, code_frames=5, free_bits=0.5, speed_weight=3.0))
     model._optimizers = model.configure_optimizers()
     poses = torch.randn(2, 20, 25, 2)
-    scalars = model.training_step(Batch(torch.randn(2, 20, 12), poses, torch.zeros(2, dtype=torch.long)), epoch=0)
+    batch = Batch(torch.randn(2, 20, 12), no_beats(2, 20), poses, torch.zeros(2, dtype=torch.long))
+    scalars = model.training_step(batch, epoch=0)
     assert {"l1", "kl", "speed"} <= scalars.keys() and scalars["kl"] > 0 and scalars["speed"] > 0
 
 
-def test_code_segments_follow_the_beat_one_hot():
-    model = DanceRevolution(dataclasses.replace(TINY, feature_dim=BEAT_COLUMN + 2, code_dim=2, code_on_beats=True))
-    audio = torch.full((1, 12, BEAT_COLUMN + 2), -0.3)
-    audio[0, [4, 9], BEAT_COLUMN] = 2.5  # standardised one-hot: beat frames are above the column's mean
-    assert model.segments(audio).tolist() == [[0] * 4 + [1] * 5 + [2] * 3]
-    assert model.generate(audio, torch.Generator().manual_seed(0)).shape == (1, 12, 25, 2)
-    with pytest.raises(DancesynthError, match="beat one-hot"):
-        dataclasses.replace(TINY, code_dim=2, code_on_beats=True)
-    with pytest.raises(DancesynthError, match="beat one-hot"):
-        dataclasses.replace(TINY, beat_phase_input=True)
+def test_code_segments_follow_the_beats():
+    model = DanceRevolution(dataclasses.replace(TINY, code_dim=2, code_on_beats=True))
+    beats = no_beats(1, 12)
+    beats[0, [4, 9]] = True
+    assert model.segments(beats).tolist() == [[0] * 4 + [1] * 5 + [2] * 3]
+    assert model.generate(torch.randn(1, 12, 12), beats, torch.Generator().manual_seed(0)).shape == (1, 12, 25, 2)
     with pytest.raises(DancesynthError, match="z_smoothing"):
         dataclasses.replace(TINY, z_smoothing=-1.0)
 
@@ -193,9 +202,9 @@ def test_smoothing_in_time_keeps_the_mean_and_damps_frame_to_frame_changes():
     assert (smooth.mean(dim=1) - x.mean(dim=1)).abs().max() < 0.1
 
 
-def dance_on_the_beats(audio: torch.Tensor, shape: torch.Tensor) -> torch.Tensor:
+def dance_on_the_beats(beats: torch.Tensor, shape: torch.Tensor) -> torch.Tensor:
     """``[1, T, 25, 2]``: the body swings out to ``shape`` and back in every beat interval, still on the beats."""
-    phase = beat_phase(beat_flags(audio))
+    phase = beat_phase(beats)
     return ((1 - torch.cos(2 * torch.pi * phase))[..., None] / 2 * shape).reshape(1, -1, 25, 2)
 
 
@@ -204,17 +213,16 @@ def beat_timing_error(beat_phase_input: bool) -> float:
     with other beats."""
     torch.manual_seed(0)
     shape = torch.randn(50) * 0.5
-    model = DanceRevolution(dataclasses.replace(TINY, feature_dim=BEAT_COLUMN + 2, window_frames=48,
-                                                beat_phase_input=beat_phase_input))
+    model = DanceRevolution(dataclasses.replace(TINY, window_frames=48, beat_phase_input=beat_phase_input))
     model._optimizers = model.configure_optimizers()
-    audio = song_with_beats([4, 7, 5, 8, 6], 48)
-    batch = Batch(audio, dance_on_the_beats(audio, shape), torch.zeros(1, dtype=torch.long))
+    features, beats = song_with_beats([4, 7, 5, 8, 6], 48)
+    batch = Batch(features, beats, dance_on_the_beats(beats, shape), torch.zeros(1, dtype=torch.long))
     for _ in range(150):
         model.training_step(batch, epoch=100)
-    new_song = song_with_beats([6, 9, 5], 48)
-    wanted = dance_on_the_beats(new_song, shape)
-    return float((model.eval().generate(new_song, torch.Generator().manual_seed(0)) - wanted).abs().mean()
-                 / wanted.abs().mean())
+    new_features, new_beats = song_with_beats([6, 9, 5], 48)
+    wanted = dance_on_the_beats(new_beats, shape)
+    generated = model.eval().generate(new_features, new_beats, torch.Generator().manual_seed(0))
+    return float((generated - wanted).abs().mean() / wanted.abs().mean())
 
 
 def test_beat_phase_input_times_the_moves_by_a_new_songs_beats():

@@ -1,9 +1,9 @@
 import numpy as np
 import pytest
 
-from stage1_pose.models.dancing2music import dance_units as du
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.motion import kinematic_beats
+from stage1_pose.models.dancing2music import dance_units as du
 
 
 def _events(num_frames: int, frames: np.ndarray) -> np.ndarray:

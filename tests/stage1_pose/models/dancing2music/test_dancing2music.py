@@ -4,13 +4,19 @@ import numpy as np
 import pytest
 import torch
 
-from stage1_pose.models.dancing2music import dance_units as du
 from dancesynth.core.errors import DancesynthError
-from stage1_pose.models.base import Batch
-from stage1_pose.models.dancing2music.model import (
-    DANCING2MUSIC_PRESETS, POSE_DIM, Dancing2MusicConfig, Dancing2MusicMethod, absolute_positions, shift_root,
-    unit_motion)
 from dancesynth.core.skeleton import ROOT
+from stage1_pose.models.base import Batch
+from stage1_pose.models.dancing2music import dance_units as du
+from stage1_pose.models.dancing2music.model import (
+    DANCING2MUSIC_PRESETS,
+    POSE_DIM,
+    Dancing2MusicConfig,
+    Dancing2MusicMethod,
+    absolute_positions,
+    shift_root,
+    unit_motion,
+)
 
 TINY = replace(DANCING2MUSIC_PRESETS["small"], gru_hidden=32, mlp_hidden=32, z_mov=8, z_dan=8, noise_dim=4,
                lr=3e-3, epochs=2, decomp_epochs=1)
@@ -41,8 +47,17 @@ def _dance(frames: int, period: float, phase: float = 0.0) -> np.ndarray:
 
 def _batch(b: int = 4, frames: int = 240) -> Batch:
     poses = np.stack([_dance(frames, 15.0 + k, k) for k in range(b)])
-    audio = np.random.default_rng(1).normal(size=(b, frames, 28)).astype(np.float32)
-    return Batch(torch.from_numpy(audio), torch.from_numpy(poses), torch.arange(b) % 3)
+    features = np.random.default_rng(1).normal(size=(b, frames, 28)).astype(np.float32)
+    beats = torch.zeros(b, frames, dtype=torch.bool)
+    return Batch(torch.from_numpy(features), beats, torch.from_numpy(poses), torch.arange(b) % 3)
+
+
+def _beat_flags(frames: int, *beat_frames: np.ndarray) -> torch.Tensor:
+    """``[len(beat_frames), frames]`` beat flags at the given frame positions (rounded)."""
+    flags = torch.zeros(len(beat_frames), frames, dtype=torch.bool)
+    for row, at in zip(flags, beat_frames):
+        row[torch.from_numpy(np.round(at).astype(np.int64))] = True
+    return flags
 
 
 @pytest.fixture(scope="module")
@@ -130,11 +145,11 @@ def test_training_steps_cover_both_phases(trained):
 
 
 def test_generation_length_and_seeds(trained):
-    audio = torch.from_numpy(np.random.default_rng(2).normal(size=(2, 97, 28)).astype(np.float32))
-    beats = [np.arange(3.0, 97.0, 7.0), np.arange(1.0, 97.0, 8.5)]
+    features = torch.from_numpy(np.random.default_rng(2).normal(size=(2, 97, 28)).astype(np.float32))
+    beats = _beat_flags(97, np.arange(3.0, 97.0, 7.0), np.arange(1.0, 97.0, 8.5))
 
     def gen(seed):
-        return trained.generate(audio, torch.Generator().manual_seed(seed), beat_frames=beats)
+        return trained.generate(features, beats, torch.Generator().manual_seed(seed))
 
     a, b, c = gen(0), gen(0), gen(1)
     assert a.shape == (2, 97, 25, 2)
@@ -143,27 +158,24 @@ def test_generation_length_and_seeds(trained):
     assert torch.isfinite(a).all()
 
 
-def test_generation_without_beats_uses_the_loudness_channel(trained):
-    frames = 120
-    audio = np.zeros((1, frames, 28), np.float32)
-    audio[0, ::8, 27] = 1.0  # a loudness rise every 8 frames
-    out = trained.generate(torch.from_numpy(audio), torch.Generator().manual_seed(0))
-    assert out.shape == (1, frames, 25, 2)
+def test_a_song_without_two_beats_is_refused_with_a_hint(trained):
+    with pytest.raises(DancesynthError, match="fewer than two beats"):
+        trained.generate(torch.zeros(1, 60, 28), _beat_flags(60, np.array([30.0])), torch.Generator().manual_seed(0))
 
 
 def test_real_unit_motion_is_learned_and_still_draws_are_redrawn(trained):
     whole_dances = _batch().poses.flatten(2)
     assert float(trained.unit_motion) == pytest.approx(unit_motion(whole_dances), rel=0.3)
-    audio_units = torch.zeros(7, du.UNIT_FRAMES, 28)
+    feature_units = torch.zeros(7, du.UNIT_FRAMES, 28)
     saved_config, saved_motion = trained.config, trained.unit_motion.clone()
     try:
         trained.config = replace(TINY, redraw_tries=1)
-        once = trained.dance_units(audio_units, torch.Generator().manual_seed(5))
+        once = trained.dance_units(feature_units, torch.Generator().manual_seed(5))
         trained.config = replace(TINY, redraw_tries=8)
         trained.unit_motion.fill_(1e6)  # unreachable: every group keeps its liveliest of 8 draws
-        best = trained.dance_units(audio_units, torch.Generator().manual_seed(5))
+        best = trained.dance_units(feature_units, torch.Generator().manual_seed(5))
         trained.unit_motion.fill_(0.0)  # every first draw passes: nothing is redrawn
-        again = trained.dance_units(audio_units, torch.Generator().manual_seed(5))
+        again = trained.dance_units(feature_units, torch.Generator().manual_seed(5))
     finally:
         trained.config = saved_config
         trained.unit_motion.copy_(saved_motion)
@@ -185,14 +197,16 @@ def test_runs_saved_before_the_redraw_threshold_load_without_redraws(trained):
 def test_model_before_composition_generates_from_the_prior(trained):
     fresh = Dancing2MusicMethod(TINY).eval()
     assert not fresh.composes and trained.composes
-    out = fresh.generate(torch.zeros(1, 60, 28), torch.Generator().manual_seed(0), beat_frames=[np.arange(0, 60, 8.0)])
+    beats = _beat_flags(60, np.arange(0, 60, 8.0))
+    out = fresh.generate(torch.zeros(1, 60, 28), beats, torch.Generator().manual_seed(0))
     assert out.shape == (1, 60, 25, 2)
 
 
 def test_ablation_without_composition_draws_movements_from_the_prior():
     torch.manual_seed(0)
     model = Dancing2MusicMethod(replace(TINY, composition=False, decomp_epochs=TINY.epochs)).eval()
-    out = model.generate(torch.zeros(1, 80, 28), torch.Generator().manual_seed(3), beat_frames=[np.arange(2, 80, 9.0)])
+    beats = _beat_flags(80, np.arange(2, 80, 9.0))
+    out = model.generate(torch.zeros(1, 80, 28), beats, torch.Generator().manual_seed(3))
     assert out.shape == (1, 80, 25, 2) and torch.isfinite(out).all()
 
 
@@ -215,7 +229,8 @@ def test_both_phases_train_through_the_shared_trainer(tiny_stage1_dataset, tmp_p
                  options=TrainerConfig(preview_every=0))
     assert meta["epoch"] == 2 and min(meta["curriculum"]["phase_steps"]) >= 1
     model = load_pose_model(tmp_path / "run", "cpu")
-    dance = generate_from_features(model, rng.standard_normal((75, 28)).astype(np.float32), seed=1)
+    dance = generate_from_features(model, rng.standard_normal((75, 28)).astype(np.float32), np.arange(0, 5, 0.5),
+                                   seed=1)
     assert dance.keypoints.shape == (75, 25, 3)
 
 

@@ -2,8 +2,8 @@ import pytest
 import torch
 
 from dancesynth.core.errors import DancesynthError
-from stage1_pose.models.ren.stgcn import STGCN, STGCNConfig
 from stage1_pose.models.ren.perceptual import PosePerceptualLoss, load_stgcn
+from stage1_pose.models.ren.stgcn import STGCN, STGCNConfig
 
 WEIGHTS = (20.0, 5.0, 1.0, 1.0)
 
@@ -50,8 +50,8 @@ def _tiny_dataset(root, seconds: float = 6.0, fps: int = 15, sr: int = 8000):
     import numpy as np
     import soundfile as sf
 
-    from stage1_pose.data.dataset import Clip, clip_paths, create_layout, write_beats, write_manifest
     from dancesynth.core.skeleton import NECK, ROOT, PoseSequence
+    from stage1_pose.data.dataset import Clip, clip_paths, create_layout, write_beats, write_manifest
 
     create_layout(root)
     rng = np.random.default_rng(0)
@@ -103,3 +103,37 @@ def test_train_stgcn_rejects_unknown_preset(tmp_path):
 
     with pytest.raises(DancesynthError, match="Unknown ST-GCN preset"):
         train_stgcn(tmp_path, tmp_path / "run", preset="giant")
+
+
+class Crash(BaseException):
+    """Stands for the process dying mid-training: nothing on the way handles it."""
+
+
+def test_interrupted_stgcn_training_resumes_bit_exactly(tmp_path, monkeypatch):
+    from apps.cli import main
+    from dancesynth.core.checkpoint import load_checkpoint, load_meta
+    from stage1_pose.models.ren import perceptual
+
+    data = _tiny_dataset(tmp_path / "data")
+    straight, killed = tmp_path / "straight", tmp_path / "killed"
+    expected = perceptual.train_stgcn(data, straight, epochs=3, device="cpu", progress=False)
+    real_augment, calls = perceptual._augment, []
+
+    def augment_then_die(*args):
+        calls.append(1)
+        if len(calls) == 4:  # second batch of the second epoch: the first epoch's checkpoint is on disk
+            raise Crash
+        return real_augment(*args)
+
+    monkeypatch.setattr(perceptual, "_augment", augment_then_die)
+    with pytest.raises(Crash):
+        perceptual.train_stgcn(data, killed, epochs=3, device="cpu", progress=False)
+    monkeypatch.undo()
+    assert load_meta(killed, "stgcn")["epoch"] == 1
+    assert main(["train-stgcn", "--data", str(data), "--out", str(killed), "--device", "cpu"]) == 1  # needs --resume
+    assert main(["train-stgcn", "--data", str(data), "--out", str(killed), "--device", "cpu", "--resume"]) == 0
+    (a, meta_a), (b, meta_b) = load_checkpoint(straight, "stgcn"), load_checkpoint(killed, "stgcn")
+    for k in a:
+        assert torch.equal(a[k], b[k]), k
+    assert meta_b["epoch"] == 3 and meta_b["train_accuracy"] == meta_a["train_accuracy"] == expected["train_accuracy"]
+    assert (killed / "metrics.csv").read_text() == (straight / "metrics.csv").read_text()

@@ -6,12 +6,21 @@ import torch
 from dancesynth.core.errors import DancesynthError
 from stage1_pose.models.base import Batch
 from stage1_pose.models.ren.model import (
-    REN_PRESETS, GlobalContentDiscriminator, LocalTemporalDiscriminator, RenConfig, RenGenerator, RenMethod,
-    StructuredSelfAttention, attention_penalty, frame_context, gradient_penalty, sub_sequences,
+    REN_PRESETS,
+    GlobalContentDiscriminator,
+    LocalTemporalDiscriminator,
+    RenConfig,
+    RenGenerator,
+    RenMethod,
+    StructuredSelfAttention,
+    attention_penalty,
+    frame_context,
+    gradient_penalty,
+    sub_sequences,
     temporal_difference,
 )
-from stage1_pose.models.ren.stgcn import STGCN, STGCNConfig
 from stage1_pose.models.ren.perceptual import PosePerceptualLoss
+from stage1_pose.models.ren.stgcn import STGCN, STGCNConfig
 
 S = 256  # samples per pose frame, small to keep the tests fast
 
@@ -96,7 +105,8 @@ def test_full_training_step_updates_every_network():
     method._optimizers = method.configure_optimizers()
     assert set(method._optimizers) == {"G", "D_local", "D_global"}
     before = {k: v.clone() for k, v in method.state_dict().items()}
-    batch = Batch(torch.randn(3, 20, S), torch.randn(3, 20, 25, 2), torch.tensor([0, 1, 2]))
+    batch = Batch(torch.randn(3, 20, S), torch.zeros(3, 20, dtype=torch.bool), torch.randn(3, 20, 25, 2),
+                  torch.tensor([0, 1, 2]))
     logs = method.training_step(batch, epoch=0)
     assert {"d_local", "d_global", "gp", "attn_penalty", "l1", "g_local", "g_global", "fm", "perceptual"} <= set(logs)
     assert all(torch.isfinite(torch.tensor(v)) for v in logs.values())
@@ -118,10 +128,10 @@ def test_l1_row_has_generator_only():
 
 def test_generate_any_length_and_varies_with_seed():
     method = RenMethod(tiny("l1-small")).eval()
-    audio = torch.randn(1, 37, S)
-    a = method.generate(audio, torch.Generator().manual_seed(1))
-    b = method.generate(audio, torch.Generator().manual_seed(1))
-    c = method.generate(audio, torch.Generator().manual_seed(2))
+    audio, beats = torch.randn(1, 37, S), torch.zeros(1, 37, dtype=torch.bool)
+    a = method.generate(audio, beats, torch.Generator().manual_seed(1))
+    b = method.generate(audio, beats, torch.Generator().manual_seed(1))
+    c = method.generate(audio, beats, torch.Generator().manual_seed(2))
     assert a.shape == (1, 37, 25, 2)
     assert torch.equal(a, b) and not torch.equal(a, c)
 
@@ -132,7 +142,7 @@ def test_tiny_generator_overfits_one_clip():
     method._optimizers = method.configure_optimizers()
     t = torch.linspace(0, 6.28, 20)
     poses = torch.stack([torch.sin(t + j) for j in range(50)], dim=-1).view(1, 20, 25, 2)
-    batch = Batch(torch.randn(1, 20, S), poses, torch.tensor([0]))
+    batch = Batch(torch.randn(1, 20, S), torch.zeros(1, 20, dtype=torch.bool), poses, torch.tensor([0]))
     first = method.training_step(batch, 0)["l1"]
     for _ in range(40):
         last = method.training_step(batch, 0)["l1"]
@@ -150,7 +160,8 @@ def test_wide_head_kernel_generator_shapes():
 
 
 def test_velocity_loss_only_where_configured():
-    batch = Batch(torch.randn(2, 20, S), torch.randn(2, 20, 25, 2), torch.tensor([0, 1]))
+    batch = Batch(torch.randn(2, 20, S), torch.zeros(2, 20, dtype=torch.bool), torch.randn(2, 20, 25, 2),
+                  torch.tensor([0, 1]))
     for w, expected in ((1000.0, True), (0.0, False)):
         method = RenMethod(tiny("l1-small", w_velocity=w))
         method._optimizers = method.configure_optimizers()
@@ -182,12 +193,12 @@ def two_mode_dances(move: torch.Tensor, variety_samples: int) -> list[torch.Tens
     torch.manual_seed(0)
     method = RenMethod(tiny("l1-small", lr_g=3e-3, noise_frames=20, noise_std=1.0, variety_samples=variety_samples))
     method._optimizers = method.configure_optimizers()
-    audio = torch.randn(1, 20, S).expand(2, -1, -1)
-    batch = Batch(audio, torch.stack([move, -move]), torch.tensor([0, 0]))
+    audio, beats = torch.randn(1, 20, S).expand(2, -1, -1), torch.zeros(2, 20, dtype=torch.bool)
+    batch = Batch(audio, beats, torch.stack([move, -move]), torch.tensor([0, 0]))
     for _ in range(300):
         method.training_step(batch, 0)
     method.eval()
-    return [method.generate(audio[:1], torch.Generator().manual_seed(s))[0] for s in range(8)]
+    return [method.generate(audio[:1], beats[:1], torch.Generator().manual_seed(s))[0] for s in range(8)]
 
 
 def test_variety_loss_makes_the_noise_choose_the_dance(mirrored_move, dances_one_way_or_the_other):

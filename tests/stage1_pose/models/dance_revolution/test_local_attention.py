@@ -1,10 +1,15 @@
 import pytest
 import torch
 
+from stage1_pose.models.dance_revolution.local_attention import (
+    LocalSelfAttention,
+    band_mask,
+    local_attention,
+    masked_full_attention,
+)
+
 # The machine is shared: one intra-op thread avoids OpenMP contention that makes tiny ops take milliseconds.
 torch.set_num_threads(1)
-
-from stage1_pose.models.dance_revolution.local_attention import LocalSelfAttention, band_mask, local_attention, masked_full_attention
 
 
 @pytest.mark.parametrize("n,window", [(1, 4), (7, 4), (50, 10), (53, 10), (64, 11), (30, 100), (41, 1), (33, 2)])

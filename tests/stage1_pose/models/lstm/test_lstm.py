@@ -11,10 +11,10 @@ TINY = LSTMConfig(feature_dim=6, hidden=24, layers=2, dropout=0.0, lr=1e-2, wind
 
 def test_shapes_and_determinism():
     model = LSTMBaseline(TINY).eval()
-    audio = torch.randn(3, 41, 6)
-    a = model.generate(audio, torch.Generator().manual_seed(0))
+    features, beats = torch.randn(3, 41, 6), torch.zeros(3, 41, dtype=torch.bool)
+    a = model.generate(features, beats, torch.Generator().manual_seed(0))
     assert a.shape == (3, 41, 25, 2)
-    assert torch.equal(a, model.generate(audio, torch.Generator().manual_seed(1)))
+    assert torch.equal(a, model.generate(features, beats, torch.Generator().manual_seed(1)))
 
 
 def test_overfits_one_clip():
@@ -23,6 +23,6 @@ def test_overfits_one_clip():
     model._optimizers = model.configure_optimizers()
     t = torch.linspace(0, 6.28, 16)
     poses = torch.stack([torch.sin(t * 2 + j) for j in range(50)], dim=-1).reshape(1, 16, 25, 2)
-    batch = Batch(torch.randn(1, 16, 6), poses, torch.zeros(1, dtype=torch.long))
+    batch = Batch(torch.randn(1, 16, 6), torch.zeros(1, 16, dtype=torch.bool), poses, torch.zeros(1, dtype=torch.long))
     losses = [model.training_step(batch, 0)["l1"] for _ in range(150)]
     assert losses[-1] < losses[0] / 5

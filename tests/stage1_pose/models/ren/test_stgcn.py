@@ -2,8 +2,8 @@ import numpy as np
 import pytest
 import torch
 
-from stage1_pose.models.ren.stgcn import STGCN, STGCNConfig, spatial_adjacency, to_absolute
 from dancesynth.core.skeleton import BODY25_LIMBS, NECK, ROOT
+from stage1_pose.models.ren.stgcn import STGCN, STGCNConfig, spatial_adjacency, to_absolute
 
 
 def test_spatial_adjacency_partitions_body25_graph():

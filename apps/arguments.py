@@ -1,0 +1,125 @@
+"""Checks shared by every command's arguments, run by argparse before any work starts.
+
+Each ``type=`` function takes the text given on the command line and returns the value (paths stay strings)
+or raises :class:`argparse.ArgumentTypeError` with what is wrong; :class:`ArgumentParser` turns that, like every
+other argument error, into one line and exit status 1 (see :func:`apps.cli.main`).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from pathlib import Path
+from typing import NoReturn
+
+# Counts go to C ints in torch and numpy; nothing a user means is larger.
+MAX_INT = 2**31 - 1
+
+
+class UsageError(Exception):
+    """A bad command line; its text is the whole line to print (``dancesynth CMD: error: ...``)."""
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """An argument parser whose errors raise :class:`UsageError` (one line) instead of printing usage and exiting 2."""
+
+    def error(self, message: str) -> NoReturn:
+        raise UsageError(f"{self.prog}: error: {message} (see `{self.prog} --help`).")
+
+
+def _number(text: str, kind: type) -> int | float:
+    try:
+        value = kind(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a {'whole ' if kind is int else ''}number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text!r}")
+    if abs(value) > MAX_INT:
+        raise argparse.ArgumentTypeError(f"must be at most {MAX_INT}, got {text!r}")
+    return value
+
+
+def positive_int(text: str) -> int:
+    """A whole number of at least 1 (epochs, batch size, steps, threads)."""
+    value = _number(text, int)
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
+    return value
+
+
+def non_negative_int(text: str) -> int:
+    """A whole number of at least 0 (seeds, worker counts, "0 = off" periods)."""
+    value = _number(text, int)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {text!r}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """A finite number greater than 0 (seconds, minutes, frame rates)."""
+    value = _number(text, float)
+    if value <= 0:
+        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
+    return value
+
+
+def non_negative_float(text: str) -> float:
+    """A finite number of at least 0 (start times, tolerances)."""
+    value = _number(text, float)
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be 0 or more, got {text!r}")
+    return value
+
+
+def fraction(text: str) -> float:
+    """A number from 0 to 1."""
+    value = _number(text, float)
+    if not 0 <= value <= 1:
+        raise argparse.ArgumentTypeError(f"must be between 0 and 1, got {text!r}")
+    return value
+
+
+def existing_file(text: str) -> str:
+    """A file that exists, can be read and is not empty."""
+    path = Path(text)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a folder, not a file; give the path of the file itself")
+    if not path.exists():
+        raise argparse.ArgumentTypeError(f"{text} does not exist; check the path")
+    if not path.is_file():
+        raise argparse.ArgumentTypeError(f"{text} is not a regular file; give the path of a file")
+    if not os.access(path, os.R_OK):
+        raise argparse.ArgumentTypeError(f"{text} cannot be read (permission denied)")
+    if path.stat().st_size == 0:
+        raise argparse.ArgumentTypeError(f"{text} is empty (0 bytes); give a complete file")
+    return text
+
+
+def _writable_folder(folder: Path, text: str) -> None:
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(f"cannot write {text}: the folder {folder} is read-only or not yours")
+
+
+def output_file(text: str) -> str:
+    """A file to write: not a folder, in an existing folder that may be written to."""
+    path = Path(text)
+    if path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a folder; give the path of the file to write instead")
+    folder = path.parent
+    if not folder.is_dir():
+        raise argparse.ArgumentTypeError(f"cannot write {text}: the folder {folder} does not exist; create it first")
+    _writable_folder(folder, text)
+    return text
+
+
+def output_folder(text: str) -> str:
+    """A folder to create or write into: not a file, and its nearest existing folder may be written to."""
+    path = Path(text).absolute()
+    if path.exists() and not path.is_dir():
+        raise argparse.ArgumentTypeError(f"{text} is a file, not a folder; give a folder path")
+    existing = next(p for p in (path, *path.parents) if p.exists())
+    if not existing.is_dir():
+        raise argparse.ArgumentTypeError(f"cannot create {text}: {existing} is a file, not a folder")
+    _writable_folder(existing, text)
+    return text

@@ -1,0 +1,206 @@
+"""The public Python API: one function per `dancesynth` command, with the command's defaults.
+
+>>> import dancesynth
+>>> dancesynth.dance("song.mp3", pose_model="runs/pose", video_model="runs/me", out="me_dancing.mp4")
+
+Paths may be ``str`` or ``os.PathLike``. Bad input raises :class:`dancesynth.core.errors.DancesynthError`
+with a one-sentence message. Progress and messages go to :mod:`logging` (configure it, e.g.
+``logging.basicConfig(level=logging.INFO)``, to see them). The heavy modules (torch, the models) are
+imported when a function is first called, not when :mod:`dancesynth` is imported.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from apps.pipeline import DanceResult
+    from dancesynth.core.skeleton import PoseSequence
+    from stage2_video.extract import Extraction
+
+PathLike = str | os.PathLike
+
+
+def dance(song: PathLike, *, pose_model: PathLike, video_model: PathLike, out: PathLike, method: str | None = None,
+          seed: int = 0, start: float = 0.0, duration: float | None = None,
+          skeleton_preview: PathLike | None = None, side_by_side: PathLike | None = None,
+          device: str = "auto") -> DanceResult:
+    """Make ``out`` (mp4): the person of ``video_model`` dancing to ``song``, with the song as its sound.
+
+    Args:
+        song: any audio FFmpeg reads (wav, mp3, ogg, m4a, flac, or a video's soundtrack).
+        pose_model: a stage-1 run folder (:func:`train_pose`), or a folder of runs named by method.
+        video_model: a stage-2 run folder (:func:`train_video`).
+        method: which run to use when ``pose_model`` holds several (default ``dance_revolution``).
+        seed: another seed gives another dance.
+        start, duration: the song segment in seconds (``duration`` None = to the end of the song).
+        skeleton_preview: also write the skeleton as an mp4.
+        side_by_side: also write skeleton | generated person as an mp4.
+        device: ``auto`` (GPU when available), ``cpu`` or ``cuda``.
+
+    Returns:
+        the dance at the video's fps on the target's canvas (``.poses``) and the files written (``.written``).
+    """
+    from apps.pipeline import dance as make_dance
+
+    return make_dance(song, pose_model, video_model, out, method=method, seed=seed, start=start, duration=duration,
+                      skeleton_preview=skeleton_preview, side_by_side=side_by_side, device=device)
+
+
+def generate(song: PathLike, *, model: PathLike, out: PathLike | None = None, seed: int = 0,
+             preview: PathLike | None = None, precision: str = "auto", device: str = "auto") -> PoseSequence:
+    """A dance for ``song`` (any length) from the stage-1 run folder ``model``.
+
+    Args:
+        out: also save the dance there (.npz: keypoints ``[T, 25, 3]`` in pixels of the training canvas,
+            confidence 1; fps, width, height); ``T`` = song length in seconds x the model's fps.
+        seed: another seed gives another dance (for stochastic methods).
+        preview: also write a skeleton mp4 with the song as its sound.
+        precision: ``int8`` decodes about 3x faster on CPU; ``auto`` = int8 on CPU, fp32 on GPU.
+        device: ``auto``, ``cpu`` or ``cuda``.
+    """
+    from dancesynth.core.draw import write_skeleton_video
+    from dancesynth.core.media import SONG_SAMPLE_RATE, load_song
+    from stage1_pose.generate import generate_dance, load_pose_model
+
+    loaded = load_pose_model(model, device, precision)
+    samples = load_song(song, SONG_SAMPLE_RATE)
+    poses = generate_dance(loaded, samples, SONG_SAMPLE_RATE, seed=seed)
+    if out is not None:
+        poses.save(out)
+    if preview is not None:
+        write_skeleton_video(poses, preview, audio=samples, audio_sr=SONG_SAMPLE_RATE)
+    return poses
+
+
+def render(poses: PoseSequence | PathLike, *, model: PathLike, out: PathLike, audio: PathLike | None = None,
+           normalize: bool = True, optimize: bool = True, device: str = "auto") -> Path:
+    """Render ``poses`` (a PoseSequence or a .npz pose file) as an mp4 of the person of the stage-2 run ``model``.
+
+    Args:
+        audio: a song to mux (any FFmpeg format), trimmed to the video's length.
+        normalize: move the poses onto the target's body first (Everybody Dance Now); False for poses that
+            are already on the target's canvas.
+        optimize: the fast inference path (OpenVINO on CPU); False for plain PyTorch.
+        device: ``auto``, ``cpu`` or ``cuda``.
+
+    Returns:
+        the written video's path; frames at the poses' fps and the model's resolution.
+    """
+    from dancesynth.core.media import AAC_RATE, decode_audio
+    from dancesynth.core.skeleton import PoseSequence
+    from stage2_video.render import load_appearance_model, render_video
+
+    if not isinstance(poses, PoseSequence):
+        poses = PoseSequence.load(poses)
+    appearance = load_appearance_model(model, device, optimize=optimize)
+    # The soundtrack is decoded at the rate it is encoded at, so it is not resampled twice.
+    samples = decode_audio(audio, AAC_RATE) if audio is not None else None
+    return render_video(poses, appearance, out, audio=samples, audio_sr=AAC_RATE if audio is not None else None,
+                        normalize=normalize)
+
+
+def extract_poses(video: PathLike, *, out: PathLike | None = None, preview: PathLike | None = None,
+                  smoothing: str = "savgol", window_s: float | None = None, min_cutoff_hz: float | None = None,
+                  beta: float | None = None, min_visibility: float | None = None,
+                  max_missing: float | None = None) -> Extraction:
+    """One person's BODY_25 skeleton in every frame of ``video`` (BlazePose, on the CPU).
+
+    Args:
+        out: also save the poses there (.npz; keypoints ``[T, 25, 3]``: x, y in pixels, confidence).
+        preview: also write an mp4 of the skeleton drawn over the video.
+        smoothing: ``savgol`` (no lag), ``one-euro`` (causal) or ``none``.
+        window_s: Savitzky-Golay window in seconds. min_cutoff_hz, beta: One-Euro settings.
+        min_visibility: BlazePose visibility below which a joint counts as absent.
+        max_missing: fail when the person is missing in more than this fraction of the frames.
+        Settings left None take :class:`stage2_video.extract.ExtractConfig`'s defaults.
+
+    Returns:
+        the poses, which frames had the person (``.found``) and what the tracker did (``.stats``).
+    """
+    from dancesynth.core.errors import DancesynthError
+    from stage2_video.extract import ExtractConfig, write_preview
+    from stage2_video.extract import extract_poses as extract
+    from stage2_video.smoothing import SmoothingConfig
+
+    for path, suffix in ((out, ".npz"), (preview, ".mp4")):
+        if path is None:
+            continue
+        if Path(path).suffix != suffix:
+            raise DancesynthError(f"{path} must end in {suffix}; choose another file name.")
+        if not Path(path).parent.is_dir():
+            raise DancesynthError(f"The folder {Path(path).parent} does not exist; create it or choose another path.")
+    smoothing_settings = _given(window_s=window_s, min_cutoff_hz=min_cutoff_hz, beta=beta)
+    settings = _given(min_visibility=min_visibility, max_missing_fraction=max_missing)
+    config = ExtractConfig(smoothing=SmoothingConfig(smoothing, **smoothing_settings), **settings)
+    result = extract(video, config)
+    if out is not None:
+        result.poses.save(out)
+    if preview is not None:
+        write_preview(video, result.poses, preview)
+    return result
+
+
+def train_pose(method: str, *, data: PathLike, out: PathLike, preset: str = "small",
+               overrides: dict[str, Any] | None = None, epochs: int | None = None, minutes: float | None = None,
+               batch_size: int | None = None, window: int | None = None, resume: bool = False,
+               checkpoint_every: int = 200, preview_every: int = 10, preview_gap: float = 2.0, seed: int = 0,
+               workers: int = 0, device: str = "auto") -> dict[str, Any]:
+    """Train the stage-1 ``method`` (see ``stage1_pose.registry.method_names()``) on the dataset folder ``data``.
+
+    Args:
+        out: the run folder (weights, metrics.csv, loss.png, previews/).
+        preset: ``small`` (CPU, minutes) or ``paper`` (published settings); ``overrides`` replace fields of it.
+        epochs: total epochs (default: the preset's); ``minutes`` stops earlier, with a checkpoint.
+        batch_size: global batch size in windows; ``window``: training window length in pose frames.
+        resume: continue the run in ``out`` exactly (a larger ``epochs`` extends a finished one).
+        checkpoint_every: optimizer steps between checkpoints.
+        preview_every: epochs between preview videos (0 = none), at most one per ``preview_gap`` minutes.
+        workers: data loader worker processes.
+
+    Returns:
+        the final checkpoint's metadata (method, epoch, epochs, step, config, ...).
+    """
+    from stage1_pose.train import TrainerConfig
+    from stage1_pose.train import train as train_method
+
+    options = TrainerConfig(batch_size=batch_size, window_frames=window, checkpoint_every=checkpoint_every,
+                            preview_every=preview_every, preview_gap_minutes=preview_gap, seed=seed,
+                            num_workers=workers)
+    return train_method(method, data, out, preset=preset, epochs=epochs, resume=resume, device=device,
+                        overrides=overrides, minutes=minutes, options=options)
+
+
+def train_video(video: PathLike, *, out: PathLike, preset: str = "small", overrides: dict[str, Any] | None = None,
+                minutes: float | None = None, epochs: int | None = None, resume: bool = False,
+                poses: PathLike | None = None, vgg_weights: PathLike | None = None, checkpoint_every: int = 200,
+                sample_every: int = 200, seed: int = 0, device: str = "auto") -> dict[str, Any]:
+    """Train the appearance model (pix2pixHD + temporal smoothing) of the person in ``video``.
+
+    Args:
+        out: the run folder (weights, validation.csv, samples/, losses.csv, losses.png).
+        preset: ``small`` (CPU, 128 px) or ``paper`` (1024x512, local enhancer, GPU); ``overrides`` replace
+            fields of it, e.g. ``{"width": 256, "height": 256}``.
+        minutes: wall-clock budget of this call; ``epochs``: total epochs. One of them is required.
+        resume: continue the run in ``out`` exactly.
+        poses: a pose file of ``video`` to use instead of extracting poses.
+        vgg_weights: local torchvision vgg19 weights (.pth/.safetensors) for the perceptual loss (off without).
+        checkpoint_every, sample_every: steps between checkpoints and between sample grids.
+
+    Returns:
+        the last checkpoint's metadata (epoch, step, validation SSIM/PSNR, ...).
+    """
+    from stage2_video.train import TrainOptions
+    from stage2_video.train import train_video as train_appearance
+
+    options = TrainOptions(minutes=minutes, epochs=epochs, checkpoint_every=checkpoint_every,
+                           sample_every=sample_every, seed=seed)
+    return train_appearance(video, out, preset, options, resume=resume, poses=poses, vgg_weights=vgg_weights,
+                            device=device, overrides=overrides)
+
+
+def _given(**settings: Any) -> dict[str, Any]:
+    """The settings that are not None (the others keep their config defaults)."""
+    return {k: v for k, v in settings.items() if v is not None}

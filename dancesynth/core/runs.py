@@ -1,0 +1,242 @@
+"""The run folder protocol every trainer follows: refuse to overwrite, checkpoint, resume exactly, log, plot, DDP.
+
+A trainer opens its ``--out`` folder as a :class:`RunFolder` (in every process when distributed), then
+
+* ``run.restore(model, optimizers)`` when resuming: weights, optimizer states, this process's RNG states and
+  the trainer's own extra state (data position, curriculum, generators) come back as they were saved, and
+  every metrics table loses the rows written after that checkpoint (a killed run logs past it);
+* ``run.log(table, row)`` appends a row to ``TABLE.csv`` (and to TensorBoard event files under
+  ``tensorboard/`` when the ``tensorboard`` package is installed);
+* ``run.save(model, meta, optimizers, extra)`` writes a checkpoint that survives ``kill -9`` at any instant
+  (:mod:`dancesynth.core.checkpoint`); it records how many rows each table has, so resume is exact;
+* ``run.plot(name)`` draws every table's curves into one PNG; ``run.close()`` at the end.
+
+Distributed training (``torchrun``): the folder joins the process group from the environment (gloo on CPU,
+nccl on GPU); :meth:`RunFolder.average_gradients` averages gradients over processes (DistributedDataParallel's
+arithmetic without its wrapper, which assumes one backward per step and so does not fit GANs). ``save`` is
+collective (each process's RNG state is kept); only rank 0 writes files.
+"""
+
+from __future__ import annotations
+
+import csv
+import os
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import torch
+import torch.distributed as dist
+from torch import nn
+
+from dancesynth.core import checkpoint as ckpt
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import atomic_path
+from dancesynth.core.plots import plot_metrics
+
+
+def init_distributed(device: torch.device) -> tuple[int, int]:
+    """(rank, world size), joining the process group when started by torchrun (``WORLD_SIZE`` > 1)."""
+    world = int(os.environ.get("WORLD_SIZE", "1"))
+    if world == 1:
+        return 0, 1
+    if not dist.is_initialized():
+        dist.init_process_group("nccl" if device.type == "cuda" else "gloo")
+    return dist.get_rank(), world
+
+
+def average_gradients(params: Iterable[nn.Parameter], world: int) -> None:
+    """Replace each gradient by its mean over the ``world`` processes (one all-reduce for all of them)."""
+    grads = [p.grad for p in params if p.grad is not None]
+    if world == 1 or not grads:
+        return
+    flat = torch.cat([g.reshape(-1) for g in grads])
+    dist.all_reduce(flat)
+    flat /= world
+    offset = 0
+    for g in grads:
+        g.copy_(flat[offset:offset + g.numel()].view_as(g))
+        offset += g.numel()
+
+
+def append_row(csv_path: Path, row: dict[str, Any]) -> None:
+    """Append ``row`` to a CSV. A row with new columns (a second training phase logs other losses) rewrites
+    the file with the union of columns, leaving them empty in earlier rows."""
+    fields: list[str] = []
+    rows: list[dict[str, str]] = []
+    if csv_path.is_file():
+        with open(csv_path, newline="") as f:
+            reader = csv.DictReader(f)
+            fields = list(reader.fieldnames or [])
+            if fields and set(row) <= set(fields):
+                with open(csv_path, "a", newline="") as out:
+                    csv.DictWriter(out, fieldnames=fields, restval="").writerow(row)
+                return
+            rows = list(reader)
+    fields += [k for k in row if k not in fields]
+    with atomic_path(csv_path) as tmp, open(tmp, "w", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=fields, restval="")
+        writer.writeheader()
+        writer.writerows([*rows, row])
+
+
+def count_rows(csv_path: Path) -> int:
+    """Number of data rows of a CSV (0 when it does not exist)."""
+    if not csv_path.is_file():
+        return 0
+    with open(csv_path, newline="") as f:
+        return sum(1 for _ in csv.DictReader(f))
+
+
+def keep_rows(csv_path: Path, count: int) -> None:
+    """Keep the header and the first ``count`` rows of a CSV (delete it when ``count`` is 0)."""
+    if count == 0:
+        csv_path.unlink(missing_ok=True)
+        return
+    if count_rows(csv_path) <= count:
+        return
+    with open(csv_path, newline="") as f:
+        reader = csv.reader(f)
+        kept = [row for _, row in zip(range(count + 1), reader)]
+    with atomic_path(csv_path) as tmp, open(tmp, "w", newline="") as f:
+        csv.writer(f).writerows(kept)
+
+
+class RunFolder:
+    """One training run's output folder (see the module docstring).
+
+    Opening it with ``resume=False`` refuses a folder that already holds a checkpoint and starts the
+    ``tables`` (metrics CSV names without ``.csv``) empty; with ``resume=True`` the folder must hold a
+    checkpoint of ``kind``, whose metadata is :attr:`meta`. Rank 0 creates the folder and deletes what
+    interrupted saves left behind.
+    """
+
+    def __init__(self, path: str | os.PathLike, kind: str, device: torch.device, resume: bool = False,
+                 tables: tuple[str, ...] = ("metrics",)) -> None:
+        self.path, self.kind, self.tables = Path(path), kind, tables
+        self.rank, self.world = init_distributed(device)
+        self.meta: dict[str, Any] | None = ckpt.load_meta(self.path, kind) if resume else None
+        if not resume and ckpt.has_checkpoint(self.path):
+            raise DancesynthError(f"{self.path} already holds a trained model; pass --resume to continue it "
+                                  "or choose a new --out folder.")
+        self._rows = {name: 0 for name in tables}
+        self._tensorboard: Any = None
+        self._purge_step: int | None = None
+        if self.writer:
+            self.path.mkdir(parents=True, exist_ok=True)
+            ckpt.remove_stale_checkpoints(self.path)
+            if not resume:
+                for name in tables:
+                    self.table_path(name).unlink(missing_ok=True)
+
+    @property
+    def writer(self) -> bool:
+        """Whether this process writes files (rank 0)."""
+        return self.rank == 0
+
+    @property
+    def resumed(self) -> bool:
+        return self.meta is not None
+
+    def table_path(self, name: str) -> Path:
+        return self.path / f"{name}.csv"
+
+    # --- distributed ------------------------------------------------------------------------------------------
+    def average_gradients(self, params: Iterable[nn.Parameter]) -> None:
+        """Mean gradient over processes (nothing to do in a single process)."""
+        average_gradients(params, self.world)
+
+    def agree(self, flag: bool) -> bool:
+        """True in every process when it is True in rank 0 (so all processes stop at the same step)."""
+        if self.world == 1:
+            return flag
+        t = torch.tensor([1.0 if flag else 0.0])
+        dist.broadcast(t, 0)
+        return bool(t.item())
+
+    def barrier(self) -> None:
+        if self.world > 1:
+            dist.barrier()
+
+    # --- checkpoints ------------------------------------------------------------------------------------------
+    def save(self, model: nn.Module, meta: dict[str, Any], optimizers: dict[str, torch.optim.Optimizer],
+             extra: dict[str, Any] | None = None) -> None:
+        """Checkpoint ``model`` with ``meta`` (JSON: ``kind`` is added, ``step`` is expected), the optimizer
+        states, every process's RNG states, the metrics tables' lengths and the trainer's ``extra`` state
+        (tensors, numbers, strings, lists, dicts). Call it in every process."""
+        rng = ckpt.capture_rng_state()
+        rngs: list[Any] = [rng]
+        if self.world > 1:
+            rngs = [None] * self.world
+            dist.all_gather_object(rngs, rng)
+        if not self.writer:
+            return
+        state = {"optimizers": {name: opt.state_dict() for name, opt in optimizers.items()}, "rng": rngs,
+                 "rows": dict(self._rows), "extra": extra or {}}
+        ckpt.save_checkpoint(self.path, model, {**meta, "kind": self.kind}, state)
+
+    def restore(self, model: nn.Module,
+                optimizers: dict[str, torch.optim.Optimizer]) -> tuple[dict[str, Any], dict[str, Any]]:
+        """Load the checkpoint being resumed into ``model`` and ``optimizers`` and restore this process's RNG
+        states; truncate the metrics tables to their length at that checkpoint. Returns (meta, extra)."""
+        if self.meta is None:
+            raise ValueError("restore() needs a run folder opened with resume=True")
+        state_dict, meta = ckpt.load_checkpoint(self.path, self.kind)
+        training = ckpt.load_training_state(self.path, meta)
+        if "extra" not in training:
+            raise DancesynthError(f"{self.path} was saved by an older dancesynth whose training state cannot be "
+                                  "resumed; start a new run with another --out folder.")
+        if len(training["rng"]) != self.world:
+            raise DancesynthError(f"{self.path} was trained with {len(training['rng'])} processes; resume it "
+                                  "with the same number so the continuation is exact.")
+        model.load_state_dict(state_dict)
+        for name, opt in optimizers.items():
+            opt.load_state_dict(training["optimizers"][name])
+        ckpt.restore_rng_state(training["rng"][self.rank])
+        self.meta = meta
+        self._rows = {name: int(training["rows"].get(name, 0)) for name in self.tables}
+        self._purge_step = int(meta.get("step", 0)) + 1
+        if self.writer:
+            for name, count in self._rows.items():
+                keep_rows(self.table_path(name), count)
+        return meta, training["extra"]
+
+    def update_meta(self, entries: dict[str, Any]) -> None:
+        """Add ``entries`` (e.g. final accuracies) to the current checkpoint's metadata (rank 0 writes)."""
+        if self.writer:
+            self.meta = ckpt.update_meta(self.path, self.kind, entries)
+
+    # --- logs -------------------------------------------------------------------------------------------------
+    def log(self, table: str, row: dict[str, Any]) -> None:
+        """Append ``row`` (it has a ``step`` entry) to ``TABLE.csv`` and its numbers to TensorBoard. Rank 0 only."""
+        if not self.writer:
+            return
+        append_row(self.table_path(table), row)
+        self._rows[table] += 1
+        board = self._board()
+        if board is not None:
+            for key, value in row.items():
+                if key not in ("step", "epoch") and isinstance(value, (int, float)):
+                    board.add_scalar(f"{table}/{key}", value, int(row["step"]))
+
+    def _board(self) -> Any:
+        """The TensorBoard writer, opened on first use; None when the optional package is missing."""
+        if self._tensorboard is None:
+            try:
+                from torch.utils.tensorboard import SummaryWriter
+            except ImportError:  # tensorboard is optional: the CSV tables and their plot always exist
+                self._tensorboard = False
+                return None
+            # A resumed run drops the events logged after its checkpoint, as it drops those CSV rows.
+            self._tensorboard = SummaryWriter(str(self.path / "tensorboard"), purge_step=self._purge_step)
+        return self._tensorboard or None
+
+    def plot(self, name: str) -> None:
+        """Draw every table's curves against ``step`` into ``NAME`` (e.g. ``loss.png``). Rank 0 only."""
+        if self.writer:
+            plot_metrics([self.table_path(t) for t in self.tables], self.path / name)
+
+    def close(self) -> None:
+        if self._tensorboard:
+            self._tensorboard.close()
+        self._tensorboard = None

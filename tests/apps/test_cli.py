@@ -1,0 +1,86 @@
+import importlib
+import logging
+import pkgutil
+import subprocess
+import sys
+from importlib.metadata import version
+
+import pytest
+
+from apps import cli, commands
+from apps.cli import main
+
+COMMANDS = sorted(importlib.import_module(f"apps.commands.{m.name}").NAME
+                  for m in pkgutil.iter_modules(commands.__path__))
+HEAVY = ("torch", "numpy", "scipy", "cv2", "librosa", "av", "mediapipe", "matplotlib")
+
+
+def _help(argv: list[str], capsys) -> str:
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 0
+    return capsys.readouterr().out
+
+
+def test_version_is_the_installed_one(capsys):
+    with pytest.raises(SystemExit) as stop:
+        main(["--version"])
+    assert stop.value.code == 0
+    assert capsys.readouterr().out.strip() == f"dancesynth {version('dancesynth')}"
+
+
+def test_help_lists_every_command(capsys):
+    text = _help(["--help"], capsys)
+    for command in COMMANDS:
+        assert f"\n    {command}" in text
+
+
+def test_help_imports_none_of_the_heavy_libraries():
+    """`dancesynth --help` and every command's --help come back at once: no torch, numpy or codecs imported."""
+    script = ("import contextlib, io, sys\n"
+              "from apps.cli import main\n"
+              f"for argv in [['--help'], *[[c, '--help'] for c in {COMMANDS!r}]]:\n"
+              "    with contextlib.suppress(SystemExit), contextlib.redirect_stdout(io.StringIO()):\n"
+              "        main(argv)\n"
+              f"print([m for m in {HEAVY!r} if m in sys.modules])\n")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def test_every_command_takes_quiet_and_verbose(capsys):
+    for command in COMMANDS:
+        text = _help([command, "--help"], capsys)
+        assert "-q, --quiet" in text and "-v, --verbose" in text, command
+
+
+@pytest.fixture
+def chatty_command(monkeypatch):
+    """make-dataset replaced by a command that logs at every level, as the libraries do."""
+    from apps.commands import make_dataset
+
+    def run(args):
+        logging.getLogger("stage1_pose.somewhere").debug("a debug detail")
+        logging.getLogger("apps.commands.make_dataset").info("wrote result.npz")
+        logging.getLogger("stage2_video.somewhere").warning("something to know")
+        logging.getLogger("matplotlib").info("another library's chatter")
+
+    monkeypatch.setattr(make_dataset, "run", run)
+    yield ["make-dataset", "--out", "unused"]
+    cli.configure_logging(logging.INFO)
+
+
+def test_quiet_and_verbose_set_what_reaches_stderr(chatty_command, capsys):
+    assert main(chatty_command) == 0
+    captured = capsys.readouterr()
+    assert captured.err == "wrote result.npz\nwarning: something to know\n" and captured.out == ""
+
+    assert main([*chatty_command, "-q"]) == 0
+    assert capsys.readouterr().err == "warning: something to know\n"
+
+    assert main([*chatty_command, "--verbose"]) == 0
+    assert capsys.readouterr().err == "debug: a debug detail\nwrote result.npz\nwarning: something to know\n"
+
+
+def test_quiet_and_verbose_together_is_a_usage_error(capsys):
+    assert main(["make-dataset", "--out", "x", "-q", "-v"]) != 0
+    assert "not allowed with argument" in capsys.readouterr().err

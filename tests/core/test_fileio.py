@@ -1,0 +1,114 @@
+import errno
+import multiprocessing
+import os
+import threading
+
+import numpy as np
+import pytest
+
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import PART_MARKER, atomic_path, os_error_sentence, temporary_sibling
+from dancesynth.core.skeleton import PoseSequence
+
+
+def test_temporary_names_are_unique_beside_the_output_and_keep_its_extension(tmp_path):
+    out = tmp_path / "same.mp4"
+    names = {temporary_sibling(out) for _ in range(100)}
+    assert len(names) == 100
+    for name in names:
+        assert name.parent == tmp_path and name.suffix == ".mp4" and PART_MARKER in name.name
+        assert name.name != out.name
+
+
+def test_two_overlapping_writers_end_with_one_complete_file(tmp_path):
+    out = tmp_path / "same.bin"
+    both_half_written = threading.Barrier(2)
+    payloads = {"a": b"A" * 100_000, "b": b"B" * 50_000}
+
+    def write(key: str) -> None:
+        with atomic_path(out) as tmp, open(tmp, "wb") as f:
+            data = payloads[key]
+            f.write(data[: len(data) // 2])
+            f.flush()
+            both_half_written.wait(timeout=10)
+            f.write(data[len(data) // 2:])
+
+    threads = [threading.Thread(target=write, args=(k,)) for k in payloads]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert out.read_bytes() in payloads.values()
+    assert [p.name for p in tmp_path.iterdir()] == ["same.bin"]
+
+
+def _save_repeatedly(path: str, value: float) -> None:
+    seq = PoseSequence(np.full((200, 25, 3), value, np.float32), 15.0, 64, 64)
+    for _ in range(20):
+        seq.save(path)
+
+
+def test_two_processes_saving_one_pose_file_leave_a_valid_file(tmp_path):
+    out = tmp_path / "poses.npz"
+    ctx = multiprocessing.get_context("spawn")
+    procs = [ctx.Process(target=_save_repeatedly, args=(str(out), v)) for v in (1.0, 2.0)]
+    for p in procs:
+        p.start()
+    for p in procs:
+        p.join(timeout=120)
+    assert [p.exitcode for p in procs] == [0, 0]
+    keypoints = PoseSequence.load(out).keypoints
+    assert len(np.unique(keypoints)) == 1 and keypoints.flat[0] in (1.0, 2.0)
+    assert [p.name for p in tmp_path.iterdir()] == ["poses.npz"]
+
+
+@pytest.mark.parametrize("failure", [RuntimeError("boom"), KeyboardInterrupt()])
+def test_a_failed_or_interrupted_write_leaves_nothing_and_keeps_the_old_file(tmp_path, failure):
+    out = tmp_path / "report.json"
+    out.write_text("old")
+    with pytest.raises(type(failure)):
+        with atomic_path(out) as tmp:
+            tmp.write_text("half")
+            raise failure
+    assert out.read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["report.json"]
+
+
+def test_a_folder_or_missing_folder_as_output_is_refused_before_writing(tmp_path):
+    (tmp_path / "video.mp4").mkdir()
+    with pytest.raises(DancesynthError, match="is a folder"):
+        with atomic_path(tmp_path / "video.mp4"):
+            pytest.fail("the body must not run")
+    with pytest.raises(DancesynthError, match="does not exist"):
+        with atomic_path(tmp_path / "no" / "out.npz"):
+            pytest.fail("the body must not run")
+
+
+def test_folder_outputs_replace_the_previous_folder_whole(tmp_path):
+    out = tmp_path / "json"
+    for count in (3, 2):
+        with atomic_path(out, folder=True) as tmp:
+            tmp.mkdir()
+            for i in range(count):
+                (tmp / f"{i}.json").write_text("{}")
+    assert sorted(p.name for p in out.iterdir()) == ["0.json", "1.json"]
+    assert [p.name for p in tmp_path.iterdir()] == ["json"]
+
+
+def test_read_only_disk_is_one_sentence_even_when_cleanup_fails(tmp_path, monkeypatch):
+    def read_only(*args, **kwargs):
+        raise OSError(errno.EROFS, os.strerror(errno.EROFS))
+
+    monkeypatch.setattr(os, "replace", read_only)
+    monkeypatch.setattr(os, "unlink", read_only)
+    with pytest.raises(DancesynthError, match="read-only") as info:
+        with atomic_path(tmp_path / "out.txt") as tmp:
+            tmp.write_text("x")
+    assert "out.txt" in str(info.value) and "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize("code, hint", [(errno.ENOSPC, "free some disk space"), (errno.EROFS, "read-only"),
+                                        (errno.EACCES, "permissions"), (errno.EIO, "check the path")])
+def test_os_errors_become_a_sentence_with_what_to_do(code, hint):
+    message = os_error_sentence(OSError(code, os.strerror(code), "/data/out.mp4"))
+    assert "/data/out.mp4" in message and hint in message and message.endswith(".")

@@ -1,0 +1,70 @@
+"""The run folder's frame and pose caches are used only for the video (and framing) they were made from."""
+
+import numpy as np
+import pytest
+
+from dancesynth.core.media import write_video
+from stage2_video import data
+from stage2_video.framing import person_framing
+
+
+def _grey_video(path, level: int, poses):
+    write_video(path, [np.full((poses.height, poses.width, 3), level, np.uint8)] * len(poses), poses.fps)
+    return path
+
+
+def _prepare(video, run_dir, poses_file=None):
+    """train-video's data preparation: poses (given or cached), then the framed frames."""
+    seq = data.check_poses_match(data.load_or_extract_poses(video, run_dir, poses_file), video)
+    return data.cache_frames(video, person_framing(seq, 32, 32), run_dir, len(seq)), seq
+
+
+@pytest.fixture
+def two_videos(tmp_path, make_poses):
+    poses = make_poses(frames=12)
+    poses_file = tmp_path / "given.npz"
+    poses.save(poses_file)
+    return _grey_video(tmp_path / "a.mp4", 40, poses), _grey_video(tmp_path / "b.mp4", 200, poses), poses_file
+
+
+def _centre(frames) -> float:
+    return float(np.asarray(frames)[:, 16, 16].mean())
+
+
+def test_another_video_of_the_same_size_in_the_same_run_folder_gets_its_own_frames(tmp_path, two_videos):
+    a, b, poses_file = two_videos
+    run = tmp_path / "run"
+    run.mkdir()
+    frames_a, _ = _prepare(a, run, poses_file)
+    frames_b, _ = _prepare(b, run, poses_file)
+    assert abs(_centre(frames_a) - 40) < 8 and abs(_centre(frames_b) - 200) < 8
+
+
+def test_cached_poses_serve_only_their_own_video(tmp_path, two_videos, monkeypatch):
+    a, b, poses_file = two_videos
+    run = tmp_path / "run"
+    run.mkdir()
+    _prepare(a, run, poses_file)
+    extracted = []
+
+    def fake_extract(video):
+        extracted.append(video)
+        raise RuntimeError("extraction reached")
+
+    monkeypatch.setattr("stage2_video.extract.extract_poses", fake_extract)
+    _prepare(a, run)  # resuming on the same video reads the cache
+    assert extracted == []
+    with pytest.raises(RuntimeError, match="extraction reached"):
+        _prepare(b, run)
+    assert extracted == [b]
+
+
+def test_a_cache_without_its_completion_key_is_rebuilt(tmp_path, two_videos):
+    a, _, poses_file = two_videos
+    run = tmp_path / "run"
+    run.mkdir()
+    frames, seq = _prepare(a, run, poses_file)
+    path = run / data.frames_file(person_framing(seq, 32, 32))
+    np.save(path, np.zeros_like(frames))  # as an interrupted rewrite would leave it, before its key
+    (run / (path.name + data.KEY_SUFFIX)).unlink()
+    assert abs(_centre(_prepare(a, run, poses_file)[0]) - 40) < 8

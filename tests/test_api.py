@@ -1,0 +1,38 @@
+"""The public Python API: `import dancesynth` is cheap, and its functions do what the commands do."""
+
+import subprocess
+import sys
+
+import numpy as np
+import soundfile
+
+import dancesynth
+from dancesynth.core.skeleton import PoseSequence
+
+TINY_LSTM = dict(hidden=16, layers=1, dropout=0.0, window_frames=30, batch_size=4)
+SR = 22050
+
+
+def test_import_is_cheap_and_exposes_the_api():
+    script = ("import sys, dancesynth\n"
+              "print(dancesynth.dance, dancesynth.__version__)\n"
+              "print(sorted(m for m in ('torch', 'numpy', 'cv2', 'librosa', 'apps.pipeline') if m in sys.modules))\n")
+    out = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, check=True).stdout
+    first, second = out.strip().splitlines()
+    assert first.startswith("<function dance") and first.endswith(dancesynth.__version__)
+    assert second == "[]"
+    assert {"dance", "generate", "train_pose", "train_video", "extract_poses", "render"} <= set(dir(dancesynth))
+
+
+def test_train_pose_then_generate_end_to_end(tiny_stage1_dataset, tmp_path, drum_loop):
+    run = tmp_path / "run"
+    meta = dancesynth.train_pose("lstm", data=tiny_stage1_dataset, out=run, overrides=TINY_LSTM, epochs=1,
+                                 preview_every=0, device="cpu")
+    assert (meta["method"], meta["epoch"]) == ("lstm", 1)
+    samples, _ = drum_loop(120, 3.0, SR)
+    song = tmp_path / "song.wav"
+    soundfile.write(song, samples, SR)
+    out = tmp_path / "dance.npz"
+    poses = dancesynth.generate(song, model=run, out=out, seed=1, device="cpu")
+    assert len(poses) == 45 and poses.fps == 15.0  # 3 s at the model's 15 fps
+    np.testing.assert_array_equal(PoseSequence.load(out).keypoints, poses.keypoints)
