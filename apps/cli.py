@@ -14,8 +14,8 @@ from __future__ import annotations
 import argparse
 import importlib
 import logging
-import pkgutil
 import os
+import pkgutil
 import signal
 import sys
 from pathlib import Path

@@ -47,14 +47,21 @@ def find_pose_run(path: str | os.PathLike, method: str | None = None) -> Path:
     return path / wanted
 
 
-def song_segment(samples: np.ndarray, sr: int, start: float = 0.0, duration: float | None = None) -> np.ndarray:
-    """Samples ``[start, start + duration)`` seconds of the song (to its end when ``duration`` is None)."""
+def song_segment(samples: np.ndarray, sr: int, start: float = 0.0, duration: float | None = None,
+                 min_seconds: float = 1.0) -> np.ndarray:
+    """Samples ``[start, start + duration)`` seconds of the song (to its end when ``duration`` is None); the
+    segment must last at least ``min_seconds``."""
     total = len(samples) / sr
     if start < 0 or start >= total:
         raise DancesynthError(f"--start {start:g} s is outside the song, which lasts {total:.1f} s; "
                               "choose a start inside it.")
     if duration is not None and duration <= 0:
         raise DancesynthError(f"--duration must be positive, got {duration:g} s.")
+    if total - start < min_seconds:
+        raise DancesynthError(f"--start {start:g} s is too close to the end of the song, which lasts {total:.1f} s; "
+                              f"choose a start at least {min_seconds:g} s before its end.")
+    if duration is not None and duration < min_seconds:
+        raise DancesynthError(f"--duration {duration:g} s is too short; choose at least {min_seconds:g} s.")
     stop = len(samples) if duration is None else min(len(samples), int(round((start + duration) * sr)))
     return samples[int(round(start * sr)):stop]
 
@@ -80,8 +87,6 @@ def dance(song: str | os.PathLike, pose_model: str | os.PathLike, video_model: s
     """
     # The song is decoded once; the same samples become the output's AAC track.
     segment = song_segment(load_song(song, SONG_SAMPLE_RATE), SONG_SAMPLE_RATE, start, duration)
-    if len(segment) < SONG_SAMPLE_RATE:
-        raise DancesynthError("The chosen song segment is shorter than 1 s; choose a longer --duration.")
     pose_model_loaded = load_pose_model(find_pose_run(pose_model, method), device)
     poses = generate_dance(pose_model_loaded, segment, SONG_SAMPLE_RATE, seed=seed)
     appearance = load_appearance_model(video_model, device)

@@ -7,14 +7,16 @@ body scale used to turn model coordinates back into pixels.
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 
-from dancesynth.core.checkpoint import load_checkpoint
+from dancesynth.core.checkpoint import POINTER, load_checkpoint, run_file_contents
 from dancesynth.core.config import config_from_dict
 from dancesynth.core.device import resolve_device
 from dancesynth.core.errors import DancesynthError
@@ -62,8 +64,15 @@ def load_pose_model(run_dir: str | os.PathLike, device: str = "auto", precision:
         raise DancesynthError(f"Unknown precision {precision!r}; choose one of {', '.join(PRECISIONS)}.")
     state, meta = load_checkpoint(run_dir, KIND)
     dev = resolve_device(device)
-    method = build_method(meta["method"], config_from_dict(config_type(meta["method"]), meta["config"]))
-    method.load_state_dict(state)
+    with run_file_contents(Path(run_dir) / POINTER):
+        method = build_method(meta["method"], config_from_dict(config_type(meta["method"]), meta["config"]))
+        method.load_state_dict(state)
+        # Everything generation reads later from the metadata is checked now, while its file can be named.
+        norm = LoadedPoseModel(method, meta, dev).norm_params()
+        mean, std = (np.asarray(meta["feature_stats"][key], np.float32) for key in ("mean", "std"))
+        if not (math.isfinite(norm.fps) and min(norm.fps, norm.scale, norm.width, norm.height) > 0
+                and mean.ndim == 1 and mean.shape == std.shape):
+            raise ValueError("fps, canvas, body_scale or feature_stats out of range")
     method.to(dev).eval()
     if precision == "auto":
         precision = "int8" if dev.type == "cpu" else "fp32"

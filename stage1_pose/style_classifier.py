@@ -15,13 +15,14 @@ import contextlib
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import torch
 from torch import nn
 
-from dancesynth.core.checkpoint import load_checkpoint, save_checkpoint
+from dancesynth.core.checkpoint import POINTER, load_checkpoint, run_file_contents, save_checkpoint
 from dancesynth.core.config import config_from_dict, config_to_dict
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.progress import track
@@ -221,10 +222,11 @@ def save_style_classifier(run_dir: str | os.PathLike, clf: LoadedStyleClassifier
 def load_style_classifier(run_dir: str | os.PathLike, device: torch.device) -> LoadedStyleClassifier:
     """Inverse of :func:`save_style_classifier`."""
     state, meta = load_checkpoint(run_dir, KIND)
-    model = StyleClassifier(config_from_dict(StyleClassifierConfig, meta["config"]), len(meta["styles"]))
-    model.load_state_dict(state)
-    return LoadedStyleClassifier(model.to(device), list(meta["styles"]), np.asarray(meta["input_mean"]),
-                                 np.asarray(meta["input_std"]), device)
+    with run_file_contents(Path(run_dir) / POINTER):
+        model = StyleClassifier(config_from_dict(StyleClassifierConfig, meta["config"]), len(meta["styles"]))
+        model.load_state_dict(state)
+        styles, mean, std = list(meta["styles"]), np.asarray(meta["input_mean"]), np.asarray(meta["input_std"])
+    return LoadedStyleClassifier(model.to(device), styles, mean, std, device)
 
 
 def classifier_accuracy(clf: LoadedStyleClassifier, dances: list[PoseSequence], labels: list[int]) -> float:

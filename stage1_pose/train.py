@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from dancesynth.core.checkpoint import POINTER, checkpoint_files, run_file_contents
 from dancesynth.core.config import config_from_dict, config_to_dict
 from dancesynth.core.device import resolve_device
 from dancesynth.core.errors import DancesynthError
@@ -65,6 +66,13 @@ class TrainerConfig:
     seed: int = 0
     num_workers: int = 0
     minutes: float | None = None
+
+
+def _count(value: Any) -> int:
+    """A whole number of at least 0 read from a run's metadata; anything else raises (an edited file)."""
+    if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+        raise ValueError(f"{value!r} is not a whole number of at least 0")
+    return value
 
 
 def epoch_order(num_items: int, seed: int, epoch: int) -> list[int]:
@@ -138,9 +146,11 @@ class Trainer:
 
     def restore(self) -> None:
         meta, extra = self.folder.restore(self.method, self.method._optimizers)
-        self.method.load_curriculum_state(meta["curriculum"])
-        self.epoch, self.batch_index, self.step = meta["epoch"], meta["batch_index"], meta["step"]
-        self.sums, self.count = dict(extra["sums"]), int(extra["count"])
+        with run_file_contents(self.folder.path / POINTER):
+            self.method.load_curriculum_state(meta["curriculum"])
+            self.epoch, self.batch_index, self.step = (_count(meta[key]) for key in ("epoch", "batch_index", "step"))
+        with run_file_contents(checkpoint_files(self.folder.path, meta)[1]):
+            self.sums, self.count = dict(extra["sums"]), int(extra["count"])
 
     # --- logging -----------------------------------------------------------------------------------------
     def log_epoch(self, seconds: float) -> None:
@@ -232,12 +242,18 @@ def train(method_name: str, data_dir: str | os.PathLike, out_dir: str | os.PathL
     run = RunFolder(out_dir, KIND, dev, resume=resume)
     if run.meta is not None:
         meta = run.meta
-        if meta["method"] != method_name:
-            raise DancesynthError(f"{run.path} is a {meta['method']} run; resume it with --method {meta['method']}.")
-        config = config_from_dict(config_type(method_name), meta["config"])
-        options = dataclasses.replace(options, epochs=options.epochs or meta["epochs"], seed=meta["seed"],
-                                      batch_size=meta["batch_size"], window_frames=meta["window_frames"],
-                                      stride_frames=meta["stride_frames"])
+        if meta.get("method") != method_name:
+            raise DancesynthError(f"{run.path} is a {meta.get('method')} run; resume it with --method "
+                                  f"{meta.get('method')}.")
+        with run_file_contents(run.path / POINTER):
+            config = config_from_dict(config_type(method_name), meta["config"])
+            saved = {key: _count(meta[key])
+                     for key in ("epochs", "seed", "batch_size", "window_frames", "stride_frames")}
+            if min(value for key, value in saved.items() if key != "seed") < 1:
+                raise ValueError("epochs, batch_size, window_frames and stride_frames must be positive")
+        options = dataclasses.replace(options, epochs=options.epochs or saved["epochs"], seed=saved["seed"],
+                                      batch_size=saved["batch_size"], window_frames=saved["window_frames"],
+                                      stride_frames=saved["stride_frames"])
     else:
         config = make_config(method_name, preset, overrides)
     trainer = Trainer(method_name, Path(data_dir), run, config, options, dev)

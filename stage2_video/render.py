@@ -9,6 +9,7 @@ for any length.
 from __future__ import annotations
 
 import copy
+import math
 import os
 import warnings
 from collections.abc import Callable, Iterator
@@ -19,7 +20,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from dancesynth.core.checkpoint import load_checkpoint
+from dancesynth.core.checkpoint import POINTER, load_checkpoint, run_file_contents
 from dancesynth.core.config import config_from_dict
 from dancesynth.core.device import resolve_device
 from dancesynth.core.errors import DancesynthError
@@ -121,15 +122,19 @@ def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", opti
     """Load ``RUN_DIR/latest`` (kind "stage2"); ``optimize`` compiles the generator for fast rendering."""
     state_dict, meta = load_checkpoint(Path(run_dir), KIND)
     dev = resolve_device(device)
-    config = config_from_dict(Pix2PixHDConfig, meta["config"])
-    model = Pix2PixHD(config)
-    model.load_state_dict(state_dict)
+    with run_file_contents(Path(run_dir) / POINTER):
+        config = config_from_dict(Pix2PixHDConfig, meta["config"])
+        model = Pix2PixHD(config)
+        model.load_state_dict(state_dict)
+        stats = BodyStats.from_dict(meta["target_stats"]) if meta.get("target_stats") else None
+        framing, fps = Framing.from_dict(meta["framing"]), float(meta["fps"])
+        if not 0 < fps < math.inf:
+            raise ValueError(f"fps {fps} is not a positive frame rate")
     generator = model.generator.eval().to(dev)
     if optimize:
         in_channels = 6 if config.temporal else 3
         generator = optimize_generator(generator, in_channels, config.width, config.height, dev)
-    stats = BodyStats.from_dict(meta["target_stats"]) if meta.get("target_stats") else None
-    return AppearanceModel(generator, config, Framing.from_dict(meta["framing"]), stats, float(meta["fps"]), dev)
+    return AppearanceModel(generator, config, framing, stats, fps, dev)
 
 
 def target_poses(model: AppearanceModel, poses: PoseSequence, normalize: bool = True) -> PoseSequence:

@@ -26,6 +26,7 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import DistributedSampler
 
+from dancesynth.core.checkpoint import POINTER, run_file_contents
 from dancesynth.core.config import config_from_dict, config_to_dict
 from dancesynth.core.device import resolve_device
 from dancesynth.core.errors import DancesynthError
@@ -251,8 +252,10 @@ class Trainer:
     def restore(self) -> None:
         """Continue from the run folder's latest checkpoint exactly where it stopped."""
         meta, _ = self.folder.restore(self.model, self.optimizers())
-        self.epoch, self.position, self.step = meta["epoch"], meta["position"], meta["step"]
-        self.total_epochs = self.options.epochs or meta["total_epochs"]
+        with run_file_contents(self.folder.path / POINTER):
+            self.epoch, self.position, self.step, total = (int(meta[key]) for key in
+                                                           ("epoch", "position", "step", "total_epochs"))
+        self.total_epochs = self.options.epochs or total
 
 
 def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_name: str = "small",
@@ -273,8 +276,9 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
     dev = resolve_device(device)
     run = RunFolder(run_dir, KIND, dev, resume=resume, tables=("losses", "validation"))
     if run.meta is not None:
-        config = config_from_dict(Pix2PixHDConfig, run.meta["config"])
-        framing = Framing.from_dict(run.meta["framing"])
+        with run_file_contents(run.path / POINTER):
+            config = config_from_dict(Pix2PixHDConfig, run.meta["config"])
+            framing = Framing.from_dict(run.meta["framing"])
     else:
         config = preset(preset_name, **(overrides or {}))
         framing = None

@@ -20,6 +20,7 @@ Runs written before checkpoints got folders (``latest.safetensors`` / ``latest.t
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import pickle
@@ -27,6 +28,7 @@ import random
 import re
 import secrets
 import shutil
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -54,8 +56,25 @@ KIND_DESCRIPTIONS: dict[str, str] = {
 }
 
 
+# What a hand-edited or damaged run file makes fail while a model or a training is rebuilt from it: a missing
+# entry, a value of the wrong type or range, weights that do not fit the config (load_state_dict's RuntimeError).
+_CONTENT_ERRORS = (KeyError, TypeError, ValueError, IndexError, AttributeError, ZeroDivisionError, RuntimeError)
+
+
 def _describe(kind: str) -> str:
     return KIND_DESCRIPTIONS.get(kind, f"a {kind!r} run")
+
+
+@contextlib.contextmanager
+def run_file_contents(path: str | os.PathLike) -> Iterator[None]:
+    """Turn an error raised while the contents of ``path`` (a run's ``latest.json`` or training state) are put
+    to use into one :class:`DancesynthError` naming the file; wrap only code that reads that file's values."""
+    try:
+        yield
+    except _CONTENT_ERRORS as e:
+        reason = " ".join(str(e).split())[:160] or type(e).__name__
+        raise DancesynthError(f"{path} does not fit the model it belongs to ({reason}); it was edited or damaged, "
+                              "so retrain or copy the whole run folder again.") from e
 
 
 def _plain_state_dict(model: nn.Module) -> dict[str, torch.Tensor]:
@@ -121,6 +140,9 @@ def remove_stale_checkpoints(run_dir: str | os.PathLike) -> None:
             current = json.loads((run_dir / POINTER).read_text()).get("checkpoint")
         except (json.JSONDecodeError, UnicodeDecodeError, AttributeError):
             return  # not our pointer: touch nothing
+        if current is not None and not (isinstance(current, str) and _CHECKPOINT_DIR.match(current)
+                                         and (run_dir / current).is_dir()):
+            return  # an edited or damaged pointer: the checkpoint it meant may be any folder, keep them all
     stem = Path(POINTER).stem
     for entry in run_dir.iterdir():
         name = entry.name
@@ -134,10 +156,14 @@ def remove_stale_checkpoints(run_dir: str | os.PathLike) -> None:
                 entry.unlink(missing_ok=True)
 
 
-def _files(run_dir: Path, meta: dict[str, Any]) -> tuple[Path, Path]:
+def checkpoint_files(run_dir: Path, meta: dict[str, Any]) -> tuple[Path, Path]:
     """(weights, training state) paths of the checkpoint ``meta`` describes."""
     if "checkpoint" in meta:
-        folder = run_dir / str(meta["checkpoint"])
+        name = meta["checkpoint"]
+        if not isinstance(name, str) or not _CHECKPOINT_DIR.match(name):
+            raise DancesynthError(f"{run_dir / POINTER} names {name!r} as its checkpoint, which is not a checkpoint "
+                                  "folder of this run; it was edited or damaged, so retrain or copy the run again.")
+        folder = run_dir / name
         return folder / WEIGHTS, folder / TRAINING
     return run_dir / LEGACY_WEIGHTS, run_dir / LEGACY_TRAINING
 
@@ -155,6 +181,8 @@ def load_meta(run_dir: str | os.PathLike, expected_kind: str) -> dict[str, Any]:
     try:
         meta = json.loads(path.read_text())
         kind = meta["kind"]
+        if not isinstance(kind, str):
+            raise TypeError(f"kind {kind!r} is not a name")
     except (json.JSONDecodeError, KeyError, TypeError, UnicodeDecodeError) as e:
         raise DancesynthError(f"{path} is not dancesynth checkpoint metadata; pass the --out folder of {what}.") from e
     if kind != expected_kind:
@@ -173,7 +201,7 @@ def load_checkpoint(run_dir: str | os.PathLike, expected_kind: str) -> tuple[dic
     run_dir = Path(run_dir)
     while True:
         meta = load_meta(run_dir, expected_kind)
-        path = _files(run_dir, meta)[0]
+        path = checkpoint_files(run_dir, meta)[0]
         try:
             state = load_file(str(path))
             with safe_open(str(path), framework="pt") as f:
@@ -194,7 +222,7 @@ def load_checkpoint(run_dir: str | os.PathLike, expected_kind: str) -> tuple[dic
 
 def load_training_state(run_dir: str | os.PathLike, meta: dict[str, Any]) -> dict[str, Any]:
     """The ``training_state`` saved with the checkpoint whose metadata is ``meta`` (optimizers, RNG, position)."""
-    path = _files(Path(run_dir), meta)[1]
+    path = checkpoint_files(Path(run_dir), meta)[1]
     if not path.is_file():
         raise DancesynthError(f"{run_dir} has no training state ({path.name}); it cannot be resumed, "
                               "start a new run with another --out folder.")

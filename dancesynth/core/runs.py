@@ -186,16 +186,20 @@ class RunFolder:
         if "extra" not in training:
             raise DancesynthError(f"{self.path} was saved by an older dancesynth whose training state cannot be "
                                   "resumed; start a new run with another --out folder.")
-        if len(training["rng"]) != self.world:
-            raise DancesynthError(f"{self.path} was trained with {len(training['rng'])} processes; resume it "
-                                  "with the same number so the continuation is exact.")
-        model.load_state_dict(state_dict)
-        for name, opt in optimizers.items():
-            opt.load_state_dict(training["optimizers"][name])
-        ckpt.restore_rng_state(training["rng"][self.rank])
-        self.meta = meta
-        self._rows = {name: int(training["rows"].get(name, 0)) for name in self.tables}
-        self._purge_step = int(meta.get("step", 0)) + 1
+        with ckpt.run_file_contents(self.path / ckpt.POINTER):
+            model.load_state_dict(state_dict)
+            self._purge_step = int(meta.get("step", 0)) + 1
+        with ckpt.run_file_contents(ckpt.checkpoint_files(self.path, meta)[1]):
+            if len(training["rng"]) != self.world:
+                raise DancesynthError(f"{self.path} was trained with {len(training['rng'])} processes; resume it "
+                                      "with the same number so the continuation is exact.")
+            if not isinstance(training["extra"], dict):
+                raise TypeError("its trainer state is not a table")
+            for name, opt in optimizers.items():
+                opt.load_state_dict(training["optimizers"][name])
+            ckpt.restore_rng_state(training["rng"][self.rank])
+            rows = {name: int(training["rows"].get(name, 0)) for name in self.tables}
+        self.meta, self._rows = meta, rows
         if self.writer:
             for name, count in self._rows.items():
                 keep_rows(self.table_path(name), count)

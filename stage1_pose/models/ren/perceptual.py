@@ -10,12 +10,13 @@ from __future__ import annotations
 import os
 from collections.abc import Sequence
 from dataclasses import replace
+from pathlib import Path
 
 import torch
 import torch.nn.functional as F
 from torch.utils.data import DataLoader
 
-from dancesynth.core.checkpoint import load_checkpoint
+from dancesynth.core.checkpoint import POINTER, load_checkpoint, run_file_contents
 from dancesynth.core.config import config_from_dict, config_to_dict
 from dancesynth.core.device import resolve_device
 from dancesynth.core.errors import DancesynthError
@@ -67,8 +68,9 @@ def load_stgcn(run_dir: str | os.PathLike, device: torch.device | str = "cpu") -
             "The pose perceptual loss needs a trained ST-GCN: run `dancesynth train-stgcn --data DIR --out RUN` "
             "and give RUN as the ren method's stgcn_run, or train an ablation preset without it (e.g. local_d-small).")
     state, meta = load_checkpoint(run_dir, expected_kind=CHECKPOINT_KIND)
-    net = STGCN(config_from_dict(STGCNConfig, meta["config"]))
-    net.load_state_dict(state)
+    with run_file_contents(Path(run_dir) / POINTER):
+        net = STGCN(config_from_dict(STGCNConfig, meta["config"]))
+        net.load_state_dict(state)
     return net.to(device).eval().requires_grad_(False)
 
 
