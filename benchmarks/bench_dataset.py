@@ -21,11 +21,12 @@ import tempfile
 import time
 from pathlib import Path
 
+import mir_eval
 import numpy as np
 
 from dancesynth.core.motion import chance_hit_rate, kinematic_beats, velocity_minimum_beats
 from dancesynth.core.skeleton import normalize
-from stage1_pose.beats import beat_f_measure, beat_times
+from stage1_pose.beats import beat_times
 from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.data.make_dataset import make_dataset
 from stage1_pose.metrics import beat_hit_rate
@@ -36,7 +37,7 @@ def _score(job: tuple[str, int]) -> tuple[str, float, float, float, float]:
     ds = DanceDataset(root)
     clip = ds.clips()[index]
     reference = ds.load_beats(clip)["beats"]
-    f = beat_f_measure(beat_times(ds.load_audio(clip), ds.sample_rate), reference, tolerance=0.07)
+    f = mir_eval.beat.f_measure(reference, beat_times(ds.load_audio(clip), ds.sample_rate), 0.07)
     poses = ds.load_poses(clip)
     xy = normalize(poses)[0]
     beat_frames = np.round(reference * ds.fps).astype(np.int64)

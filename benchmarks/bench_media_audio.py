@@ -11,6 +11,7 @@ import tempfile
 import time
 from pathlib import Path
 
+import mir_eval
 import numpy as np
 
 from dancesynth.core import media
@@ -83,7 +84,7 @@ def main() -> None:
     beats, dt = timed(lambda: beat_tracking.beat_times(y, SR))
     reference = np.arange(0, args.seconds - 0.2, 0.5)
     rows.append(("beat_times", f"{args.seconds:g} s song", f"{dt:.2f} s",
-                 f"F={beat_tracking.beat_f_measure(beats, reference):.3f}",
+                 f"F={mir_eval.beat.f_measure(reference, beats):.3f}",
                  f"{beat_tracking.tempo(y, SR):.1f} BPM"))
     frames = int(args.seconds * 15)
     for size in (256, 512):

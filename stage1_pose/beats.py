@@ -1,4 +1,6 @@
-"""Music beats: tracking them in a song, placing them on pose frames, and scoring a tracker against known beats.
+"""Music beats: tracking them in a song, the tempo to dance at, and placing them on pose frames.
+
+Trackers are scored with ``mir_eval.beat`` in the tests and in ``benchmarks/beat_benchmark.py`` (real music).
 
 Beat times are seconds from the start of the song; on pose frames a beat is the frame nearest to its time
 (pose frame ``i`` sits at ``i / fps`` seconds, see :mod:`stage1_pose.features`).
@@ -10,18 +12,35 @@ import numpy as np
 
 from stage1_pose.features import ANALYSIS_SR, log_mel, num_pose_frames, onset_envelope, resample_audio
 
-# Beat tracking: a 5.8 ms hop at 22050 Hz gives tempo resolution well below 1 BPM, and onset strength from the
-# mel bands under 150 Hz follows the kick drum rather than off-beat hi-hats.
+# Beat tracking runs at 22050 Hz with an 11.6 ms hop. Choices measured on benchmarks/beat_benchmark.py (real
+# recordings and rendered MIDI pieces with known beats) and on the built-in synthetic songs.
 _BEAT_SR = 22050
-_BEAT_HOP = 128
-_BEAT_FMAX = 150.0
-_BEAT_MELS = 8
-# librosa's default autocorrelation window for tempo estimation, in seconds.
+_BEAT_HOP = 256
+# Kick band. Its flux is taken on log(1 + 1000 * power / max): unlike decibels, this barely moves for the faint
+# low-frequency leak of loud hi-hats, so the band follows the kick drum (walking or off-beat bass is removed below).
+_LOW_HZ = 200.0
+_LOW_GAIN = 1000.0
+_LOW_SPREAD_BANDS = 5
+# The beats are placed on the flux of the bands under 2 kHz plus twice the kick band: cymbals and hi-hats, which
+# often play off the beat, are left out of the phase decision.
+_PHASE_FMAX = 2000.0
+_LOW_WEIGHT = 2.0
+# librosa's autocorrelation window for tempo estimation, in seconds.
 _TEMPO_WINDOW_SECONDS = 8.0
-# Tempo prior: log-normal around 100 BPM with a 1.5-octave spread. librosa's default (120 BPM, 1 octave) pulls
-# slow songs (60-75 BPM) to a wrong faster tempo; this measured better on the synthetic styles and drum loops.
-_TEMPO_PRIOR_BPM = 100.0
+# Tempo = argmax over 40-240 BPM of (autocorrelation at the beat lag + half of it at twice the lag) x a log-normal
+# prior around 120 BPM spread 1.5 octaves. The twice-the-lag term favours tempi whose two-beat groups repeat too,
+# which removes the 3:2 errors (a dotted-quarter "beat") that a single lag makes on metal and arpeggios.
+_TEMPO_GRID_BPM = np.arange(40.0, 240.0, 0.5)
+_TEMPO_HARMONICS = ((1, 1.0), (2, 0.5))
+_TEMPO_PRIOR_BPM = 120.0
 _TEMPO_PRIOR_OCTAVES = 1.5
+# Dynamic-programming tightness (librosa's default is 100): real songs keep a steady grid through breaks.
+_TIGHTNESS = 400.0
+# Swing check: beats that landed on swung off-beats (2/3 of the way through a beat) see the true beat a third of
+# a beat later; the beats move there when that position is this many times stronger than the two-thirds one.
+_SWING_RATIO = 2.0
+# Tempo for dancing: above this, dancers step on every other beat (half time); the built-in styles span 60-135.
+DANCE_MAX_BPM = 140.0
 # Onset strength per pose frame is analysed with an 8.3 ms hop at ANALYSIS_SR: finer than any pose frame rate in use.
 _ONSET_HOP = 128
 
@@ -35,18 +54,34 @@ def beats_on_frames(times: np.ndarray, num_frames: int, fps: float) -> np.ndarra
     return out
 
 
-def _low_onset(samples: np.ndarray, sr: int) -> np.ndarray:
-    """Onset strength of the bands under 150 Hz at ``_BEAT_SR`` / ``_BEAT_HOP`` frames per second."""
+def _envelopes(samples: np.ndarray, sr: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(full-band, kick-band, phase) onset envelopes at ``_BEAT_SR`` / ``_BEAT_HOP`` frames per second, each
+    scaled to unit standard deviation."""
+    import librosa
+
     y = resample_audio(samples, sr, _BEAT_SR)
-    return onset_envelope(log_mel(y, _BEAT_SR, _BEAT_HOP, _BEAT_MELS, _BEAT_FMAX), _BEAT_SR, _BEAT_HOP)
+    mel_db = log_mel(y, _BEAT_SR, _BEAT_HOP)
+    freqs = librosa.mel_frequencies(n_mels=mel_db.shape[0], fmax=_BEAT_SR / 2)
+    low_power = librosa.db_to_power(mel_db[freqs < _LOW_HZ])
+    # A 1-frame harmonic kernel keeps the power each low band shares with its neighbours (median over
+    # _LOW_SPREAD_BANDS bands): a kick drum spreads over the low bands, a bass note sits in one and is suppressed.
+    low_power = librosa.decompose.hpss(low_power, kernel_size=(1, _LOW_SPREAD_BANDS))[1]
+    low = onset_envelope(np.log1p(_LOW_GAIN * low_power / max(float(low_power.max()), 1e-12)), _BEAT_SR, _BEAT_HOP)
+    full = onset_envelope(mel_db, _BEAT_SR, _BEAT_HOP)
+    phase = _unit(onset_envelope(mel_db[freqs < _PHASE_FMAX], _BEAT_SR, _BEAT_HOP)) + _LOW_WEIGHT * _unit(low)
+    return _unit(full), _unit(low), phase
+
+
+def _unit(envelope: np.ndarray) -> np.ndarray:
+    return envelope / max(float(envelope.std()), 1e-9)
 
 
 def _mean_tempogram(onset: np.ndarray) -> np.ndarray:
-    """``[win, 1]`` time-averaged autocorrelation tempogram of an onset envelope, computed in chunks.
+    """``[win]`` time-averaged autocorrelation tempogram of an onset envelope, computed in chunks.
 
-    librosa's tempo estimate averages a ``[win, frames]`` tempogram; at this fine hop a whole song's tempogram
-    takes gigabytes, so it is accumulated chunk by chunk (each chunk sees half a window of onsets beyond its
-    edges, and each frame is counted once), keeping memory flat for any song length.
+    A whole song's ``[win, frames]`` tempogram would take gigabytes for long songs, so it is accumulated chunk by
+    chunk (each chunk sees half a window of onsets beyond its edges, and each frame is counted once), keeping
+    memory flat for any song length.
     """
     import librosa
 
@@ -61,24 +96,52 @@ def _mean_tempogram(onset: np.ndarray) -> np.ndarray:
         keep = tg[:, start - lo:start - lo + min(chunk, len(onset) - start)]
         total += keep.sum(axis=1)
         count += keep.shape[1]
-    return (total / max(count, 1))[:, None]
+    return total / max(count, 1)
+
+
+def _estimate_tempo(full: np.ndarray, low: np.ndarray) -> float:
+    """Tempo in BPM from the summed full-band and kick-band tempograms (see ``_TEMPO_HARMONICS``)."""
+    tg = _mean_tempogram(full) + _mean_tempogram(low)
+    lags = 60.0 * _BEAT_SR / _BEAT_HOP / _TEMPO_GRID_BPM
+    score = sum(w * np.interp(k * lags, np.arange(len(tg)), tg) for k, w in _TEMPO_HARMONICS)
+    prior = np.exp(-0.5 * (np.log2(_TEMPO_GRID_BPM / _TEMPO_PRIOR_BPM) / _TEMPO_PRIOR_OCTAVES) ** 2)
+    return float(_TEMPO_GRID_BPM[np.argmax(score * prior)])
+
+
+def _unswing(beats: np.ndarray, full: np.ndarray) -> np.ndarray:
+    """Move beats that sit on swung off-beats a third of a beat later (see ``_SWING_RATIO``)."""
+    if len(beats) < 8:
+        return beats
+    period = float(np.median(np.diff(beats)))
+
+    def strength(fraction: float) -> float:
+        idx = np.round((beats[:-1] + fraction * period) * _BEAT_SR / _BEAT_HOP).astype(np.int64)
+        idx = idx[(idx >= 1) & (idx < len(full) - 1)]
+        return float(np.mean(np.max([full[idx - 1], full[idx], full[idx + 1]], axis=0))) if len(idx) else 0.0
+
+    on, third, half, two_thirds = strength(0.0), strength(1 / 3), strength(0.5), strength(2 / 3)
+    if third > _SWING_RATIO * two_thirds and third > half and third > 0.5 * on:
+        return beats + period / 3
+    return beats
 
 
 def _track(samples: np.ndarray, sr: int) -> tuple[float, np.ndarray]:
     import librosa
 
-    onset = _low_onset(samples, sr)
-    bpm = float(librosa.feature.tempo(tg=_mean_tempogram(onset), sr=_BEAT_SR, hop_length=_BEAT_HOP,
-                                      start_bpm=_TEMPO_PRIOR_BPM, std_bpm=_TEMPO_PRIOR_OCTAVES)[0])
-    _, beats = librosa.beat.beat_track(onset_envelope=onset, sr=_BEAT_SR, hop_length=_BEAT_HOP, bpm=bpm, units="time")
-    return bpm, np.asarray(beats, dtype=np.float64)
+    full, low, phase = _envelopes(samples, sr)
+    bpm = _estimate_tempo(full, low)
+    _, beats = librosa.beat.beat_track(onset_envelope=phase, sr=_BEAT_SR, hop_length=_BEAT_HOP, bpm=bpm,
+                                       tightness=_TIGHTNESS, units="time")
+    return bpm, _unswing(np.asarray(beats, dtype=np.float64), full)
 
 
 def beat_times(samples: np.ndarray, sr: int) -> np.ndarray:
     """Beat positions in seconds (``[B]`` float64, increasing) of a mono ``[N]`` song at ``sr`` Hz.
 
-    Uses librosa's dynamic-programming tracker on low-frequency onset strength (mel bands under 150 Hz, 5.8 ms
-    hop), which follows kick drums and ignores off-beat hi-hats.
+    Tempo from the full-band and kick-band onset tempograms (beat and two-beat lags, a wide prior around 120 BPM),
+    then librosa's dynamic-programming tracker on the onsets under 2 kHz plus the kick band (bass notes removed),
+    and a swing check that moves beats off swung off-beats. Beats are at the song's own metrical level (the
+    tempo to dance at is :func:`dance_tempo`).
     """
     return _track(samples, sr)[1]
 
@@ -86,6 +149,18 @@ def beat_times(samples: np.ndarray, sr: int) -> np.ndarray:
 def tempo(samples: np.ndarray, sr: int) -> float:
     """Estimated tempo in beats per minute of a mono ``[N]`` song at ``sr`` Hz."""
     return _track(samples, sr)[0]
+
+
+def dance_tempo(bpm: float) -> float:
+    """Tempo to dance at, in steps per minute, for a song of ``bpm`` (:func:`tempo`): halved while above
+    ``DANCE_MAX_BPM`` (140).
+
+    People dance fast songs (metal at 170-180 BPM, fast swing) in half time; 140 keeps every built-in style
+    (60-135 BPM) and most pop at its own tempo.
+    """
+    while bpm > DANCE_MAX_BPM:
+        bpm /= 2
+    return bpm
 
 
 def onset_strength(samples: np.ndarray, sr: int, fps: float) -> np.ndarray:
@@ -102,28 +177,3 @@ def onset_strength(samples: np.ndarray, sr: int, fps: float) -> np.ndarray:
     keep = frame_of < num_frames
     np.maximum.at(out, frame_of[keep], onset[keep])
     return out
-
-
-def beat_f_measure(estimated: np.ndarray, reference: np.ndarray, tolerance: float = 0.07) -> float:
-    """F-measure of estimated beat times against reference beat times (both in seconds).
-
-    A reference beat is hit when an estimated beat lies within ``tolerance`` seconds of it; each estimate
-    can hit at most one reference (greedy, closest pairs first). Returns 0.0 when either list is empty.
-    """
-    est = np.sort(np.asarray(estimated, dtype=np.float64).ravel())
-    ref = np.sort(np.asarray(reference, dtype=np.float64).ravel())
-    if len(est) == 0 or len(ref) == 0:
-        return 0.0
-    dist = np.abs(ref[:, None] - est[None, :])
-    pairs = np.argwhere(dist <= tolerance)
-    pairs = pairs[np.argsort(dist[pairs[:, 0], pairs[:, 1]], kind="stable")]
-    used_ref, used_est, hits = set(), set(), 0
-    for r, e in pairs:
-        if r not in used_ref and e not in used_est:
-            used_ref.add(r)
-            used_est.add(e)
-            hits += 1
-    if hits == 0:
-        return 0.0
-    precision, recall = hits / len(est), hits / len(ref)
-    return 2 * precision * recall / (precision + recall)
