@@ -11,6 +11,7 @@ imported when a function is first called, not when :mod:`dancesynth` is imported
 
 from __future__ import annotations
 
+import contextlib
 import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -62,16 +63,20 @@ def generate(song: PathLike, *, model: PathLike, out: PathLike | None = None, se
         device: ``auto``, ``cpu`` or ``cuda``.
     """
     from dancesynth.core.draw import write_skeleton_video
+    from dancesynth.core.fileio import atomic_path
     from dancesynth.core.media import SONG_SAMPLE_RATE, load_song
     from stage1_pose.generate import generate_dance, load_pose_model
 
     loaded = load_pose_model(model, device, precision)
     samples = load_song(song, SONG_SAMPLE_RATE)
     poses = generate_dance(loaded, samples, SONG_SAMPLE_RATE, seed=seed)
-    if out is not None:
-        poses.save(out)
-    if preview is not None:
-        write_skeleton_video(poses, preview, audio=samples, audio_sr=SONG_SAMPLE_RATE)
+    # Both outputs are renamed into place only once both are complete, so a failure leaves neither.
+    with contextlib.ExitStack() as outputs:
+        if out is not None:
+            poses.save(outputs.enter_context(atomic_path(out)))
+        if preview is not None:
+            write_skeleton_video(poses, outputs.enter_context(atomic_path(preview)), audio=samples,
+                                 audio_sr=SONG_SAMPLE_RATE)
     return poses
 
 

@@ -12,8 +12,11 @@ LSmallToe / RSmallToe are always absent (confidence 0). Confidence = landmark vi
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import os
-from collections.abc import Iterable
+import sys
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -27,6 +30,8 @@ from dancesynth.core.progress import track
 from dancesynth.core.skeleton import JOINT_INDEX, NECK, NUM_JOINTS, ROOT, PoseSequence, interpolate_missing
 from stage2_video.smoothing import SmoothingConfig, smooth
 from stage2_video.tracking import Box, PersonTracker, TrackerConfig, TrackStats
+
+logger = logging.getLogger(__name__)
 
 # BODY_25 joint -> BlazePose landmark index (mediapipe.solutions.pose.PoseLandmark order).
 _BLAZEPOSE_OF_BODY25: dict[str, int] = {
@@ -90,6 +95,37 @@ def blazepose_to_body25(landmarks: np.ndarray, region: tuple[float, float, float
         if out[a, 2] > 0 and out[b, 2] > 0:
             out[mid] = (*((out[a, :2] + out[b, :2]) / 2), min(out[a, 2], out[b, 2]))
     return out
+
+
+@contextlib.contextmanager
+def native_logs_hidden_unless_info() -> Iterator[None]:
+    """Unless this module logs at INFO (``-q`` turns it off), send what native code writes to the process's
+    stderr to /dev/null: mediapipe's absl and TF Lite lines, which no environment variable or absl setting
+    silences. Python's own messages keep going to the real stderr."""
+    if logger.isEnabledFor(logging.INFO):
+        yield
+        return
+    python_stderr = sys.stderr
+    try:
+        python_uses_fd2 = python_stderr.fileno() == 2
+    except (AttributeError, OSError, ValueError):  # a replaced stderr (a test's capture) has no descriptor
+        python_uses_fd2 = False
+    python_stderr.flush()
+    saved = os.dup(2)
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, 2)
+    os.close(devnull)
+    if python_uses_fd2:
+        sys.stderr = open(os.dup(saved), "w", buffering=1, encoding=python_stderr.encoding,
+                          errors=python_stderr.errors)
+    try:
+        yield
+    finally:
+        if python_uses_fd2:
+            sys.stderr.close()
+            sys.stderr = python_stderr
+        os.dup2(saved, 2)
+        os.close(saved)
 
 
 class BlazePose:
@@ -194,7 +230,7 @@ def extract_frames(frames: Iterable[np.ndarray], fps: float, size: tuple[int, in
     """
     config = config or ExtractConfig()
     raw, found = [], []
-    with BlazePose(config.min_visibility, config.crop_size) as estimator:
+    with native_logs_hidden_unless_info(), BlazePose(config.min_visibility, config.crop_size) as estimator:
         tracker = PersonTracker(estimator, size[0], size[1], config.tracker)
         for frame in track(frames, total=total, desc="extracting poses", unit="frame", disable=not progress):
             pose = tracker.step(frame)

@@ -72,3 +72,30 @@ def make_drum_loop(bpm: float, seconds: float, sr: int, seed: int = 0) -> tuple[
 def drum_loop():
     """:func:`make_drum_loop`: ``drum_loop(bpm, seconds, sr)`` -> (samples, kick times in seconds)."""
     return make_drum_loop
+
+
+def write_truncated_video(frames: list[np.ndarray], path: Path, fps: float = 15.0) -> Path:
+    """An mp4 of ``frames`` with its index first (as phones and web videos store it), cut after the packet of the
+    middle frame: it still opens and decodes up to the cut, like an interrupted download."""
+    import av
+
+    from dancesynth.core.media import write_video
+
+    whole = path.with_name(f"whole_{path.name}")
+    write_video(whole, frames, fps)
+    with av.open(str(whole)) as src, av.open(str(path), "w", options={"movflags": "faststart"}) as dst:
+        stream = dst.add_stream_from_template(src.streams.video[0])
+        for packet in src.demux(src.streams.video[0]):
+            if packet.dts is not None:
+                packet.stream = stream
+                dst.mux(packet)
+    with av.open(str(path)) as video:
+        ends = sorted(p.pos + p.size for p in video.demux(video.streams.video[0]) if p.size)
+    path.write_bytes(path.read_bytes()[:ends[len(ends) // 2]])
+    return path
+
+
+@pytest.fixture
+def truncated_video():
+    """:func:`write_truncated_video`: ``truncated_video(frames, path, fps=15)`` -> path."""
+    return write_truncated_video

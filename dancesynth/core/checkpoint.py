@@ -21,6 +21,7 @@ Runs written before checkpoints got folders (``latest.safetensors`` / ``latest.t
 from __future__ import annotations
 
 import contextlib
+import io
 import json
 import os
 import pickle
@@ -28,6 +29,7 @@ import random
 import re
 import secrets
 import shutil
+import warnings
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -113,13 +115,27 @@ def save_checkpoint(run_dir: str | os.PathLike, model: nn.Module, meta: dict[str
     text = json.dumps({**meta, "checkpoint": name, "save_id": save_id}, indent=2, sort_keys=True)
     with atomic_path(run_dir / name, folder=True) as tmp:
         tmp.mkdir()
-        save_file(_plain_state_dict(model), str(tmp / WEIGHTS),
-                  metadata={"save_id": save_id, "kind": str(meta["kind"])})
+        _save_weights(_plain_state_dict(model), tmp / WEIGHTS, {"save_id": save_id, "kind": str(meta["kind"])})
         if training_state is not None:
-            torch.save({"save_id": save_id, "state": training_state}, tmp / TRAINING)
+            # Serialised in memory and written by Python: torch reports a failed write (a full or read-only
+            # disk) as a RuntimeError without the cause, Python's OSError names it.
+            buffer = io.BytesIO()
+            torch.save({"save_id": save_id, "state": training_state}, buffer)
+            (tmp / TRAINING).write_bytes(buffer.getbuffer())
     with atomic_path(run_dir / POINTER) as tmp:
         tmp.write_text(text)
     remove_stale_checkpoints(run_dir)
+
+
+def _save_weights(tensors: dict[str, torch.Tensor], path: Path, metadata: dict[str, str]) -> None:
+    """safetensors' ``save_file``, its I/O failures (e.g. a full disk) raised as the OSError they are."""
+    try:
+        save_file(tensors, str(path), metadata=metadata)
+    except SafetensorError as e:
+        code = re.search(r"os error (\d+)", str(e))
+        if code is None:
+            raise
+        raise OSError(int(code.group(1)), os.strerror(int(code.group(1))), str(path)) from e
 
 
 def update_meta(run_dir: str | os.PathLike, expected_kind: str, entries: dict[str, Any]) -> dict[str, Any]:
@@ -227,7 +243,9 @@ def load_training_state(run_dir: str | os.PathLike, meta: dict[str, Any]) -> dic
         raise DancesynthError(f"{run_dir} has no training state ({path.name}); it cannot be resumed, "
                               "start a new run with another --out folder.")
     try:
-        saved = torch.load(path, map_location="cpu", weights_only=True)
+        with warnings.catch_warnings():  # a foreign pickle's protocol warning would add lines to the one error
+            warnings.filterwarnings("ignore", message="Detected pickle protocol")
+            saved = torch.load(path, map_location="cpu", weights_only=True)
     except (RuntimeError, OSError, EOFError, ValueError, pickle.UnpicklingError) as e:
         # weights_only refuses pickled code as UnpicklingError; random bytes raise any of the others.
         raise DancesynthError(f"{path} is not a training state this program wrote ({type(e).__name__}); "

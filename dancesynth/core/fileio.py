@@ -51,6 +51,29 @@ def _remove(path: Path) -> None:
             path.unlink(missing_ok=True)
 
 
+def _umask() -> int:
+    mask = os.umask(0o022)  # reading the umask means setting it; it is put back at once
+    os.umask(mask)
+    return mask
+
+
+def _set_plain_modes(tmp: Path, path: Path, folder: bool) -> None:
+    """Give ``tmp`` the permissions writing ``path`` directly would: an existing file keeps its own, anything new
+    gets 0666 (folders 0777) less the umask. Some writers (safetensors, tempfile) create their files 0600."""
+    mask = _umask()
+    if not folder:
+        mode = path.stat().st_mode & 0o7777 if path.is_file() else 0o666 & ~mask
+        os.chmod(tmp, mode)
+        return
+    os.chmod(tmp, 0o777 & ~mask)
+    for dirpath, dirnames, filenames in os.walk(tmp):
+        for name in dirnames:
+            os.chmod(os.path.join(dirpath, name), 0o777 & ~mask)
+        for name in filenames:
+            if not os.path.islink(os.path.join(dirpath, name)):
+                os.chmod(os.path.join(dirpath, name), 0o666 & ~mask)
+
+
 def _replace_folder(tmp: Path, path: Path) -> None:
     """Move the finished folder ``tmp`` onto ``path``; an existing folder there is moved aside first and deleted."""
     old = temporary_sibling(path)
@@ -65,7 +88,8 @@ def _replace_folder(tmp: Path, path: Path) -> None:
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, folder: bool = False) -> Iterator[Path]:
     """Yield a fresh temporary path beside ``path`` (see :func:`temporary_sibling`); on success rename it to
-    ``path``, on any error or interruption delete it.
+    ``path``, on any error or interruption delete it. The output gets the permissions a plain ``open()`` (or
+    ``mkdir``) would give it.
 
     With ``folder`` the caller creates a folder at the temporary path; it replaces an existing folder ``path``.
     Otherwise ``path`` must not be a folder. Two concurrent writers each finish with a complete output; the last
@@ -81,6 +105,7 @@ def atomic_path(path: str | os.PathLike, folder: bool = False) -> Iterator[Path]
     tmp = temporary_sibling(path)
     try:
         yield tmp
+        _set_plain_modes(tmp, path, folder)
         if folder:
             _replace_folder(tmp, path)
         else:

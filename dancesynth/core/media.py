@@ -8,6 +8,7 @@ duration. Every output is written under a temporary name and renamed when comple
 from __future__ import annotations
 
 import contextlib
+import logging
 import os
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
@@ -19,6 +20,8 @@ import numpy as np
 
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
+
+logger = logging.getLogger(__name__)
 
 # Rates AAC audio is written at; any other rate is resampled to AAC_RATE. Low rates are avoided because a
 # 1024-sample AAC frame would then last longer than a video frame, so the track could not end with the video.
@@ -116,10 +119,15 @@ def _video_stream(container: av.container.InputContainer, path: str | os.PathLik
 
 
 def _decoded_frames(path: str | os.PathLike, limit: int | None = None) -> Iterator[av.VideoFrame]:
-    """Decoded frames of the first video stream (at most ``limit``); at least one, else DancesynthError."""
+    """Decoded frames of the first video stream (at most ``limit``); at least one, else DancesynthError.
+
+    Reading to the end, a video that yields clearly fewer frames than its header declares (a truncated
+    download or copy still decodes up to the cut) is logged as a warning.
+    """
     with _open_input(path) as container:
         stream = _video_stream(container, path)
         stream.thread_type = "AUTO"
+        declared = int(stream.frames)
         count = 0
         try:
             for frame in container.decode(stream):
@@ -132,6 +140,10 @@ def _decoded_frames(path: str | os.PathLike, limit: int | None = None) -> Iterat
                                   "re-encode or re-download it.") from e
         if count == 0:
             raise DancesynthError(f"{path} contains no video frames; choose another video.")
+        # Decoders may drop a frame or two of an edited stream; more than that missing means data is gone.
+        if count < declared - max(2, declared // 50):
+            logger.warning(f"{path} decoded only {count} of the {declared} frames its header declares; the file "
+                           "looks truncated (an interrupted download or copy), so only those frames are used.")
 
 
 def probe_video(path: str | os.PathLike) -> VideoInfo:
@@ -263,7 +275,9 @@ class VideoWriter:
     def __enter__(self) -> "VideoWriter":
         with contextlib.ExitStack() as stack:
             tmp = stack.enter_context(atomic_path(self.path))
-            self._container = stack.enter_context(av.open(str(tmp), mode="w", format="mp4"))
+            # The file is Python's, so it is closed even when FFmpeg fails to finish it (e.g. on a full disk).
+            file = stack.enter_context(open(tmp, "wb"))
+            self._container = stack.enter_context(av.open(file, mode="w", format="mp4"))
             rate = _frame_rate(self.fps)
             self._video = self._container.add_stream("libx264", rate=rate)
             self._video.width, self._video.height = self.width + self.width % 2, self.height + self.height % 2

@@ -7,6 +7,7 @@ second. A joint whose confidence is 0 is absent; its x, y are meaningless.
 
 from __future__ import annotations
 
+import math
 import os
 import zipfile
 from dataclasses import dataclass
@@ -121,12 +122,20 @@ class PoseSequence:
             with np.load(path, allow_pickle=False) as z:
                 if str(z["layout"]) != "BODY_25":
                     raise KeyError("layout")
-                return cls(z["keypoints"], float(z["fps"]), int(z["width"]), int(z["height"]))
+                seq = cls(z["keypoints"], float(z["fps"]), int(z["width"]), int(z["height"]))
+            if not (math.isfinite(seq.fps) and seq.width > 0 and seq.height > 0):
+                raise ValueError("the frame rate and the canvas size must be positive")
         # TypeError: a plain .npy array is no archive; EOFError: an empty file; BadZipFile: a truncated archive
         except (OSError, KeyError, ValueError, TypeError, EOFError, zipfile.BadZipFile) as e:
             raise DancesynthError(
                 f"{path} is not a dancesynth pose file (.npz with BODY_25 keypoints, fps, width, height); "
                 "create one with `dancesynth extract-poses` or `dancesynth generate`.") from e
+        if len(seq) == 0:
+            raise DancesynthError(f"{path} holds no frames; give a pose file with at least one frame.")
+        if not np.isfinite(seq.keypoints).all():
+            raise DancesynthError(f"{path} has keypoints that are not finite numbers; it is damaged, so create it "
+                                  "again with `dancesynth extract-poses` or `dancesynth generate`.")
+        return seq
 
 
 def from_partial(points: np.ndarray, to_body25: tuple[int, ...], fps: float, width: int, height: int) -> PoseSequence:

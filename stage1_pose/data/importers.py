@@ -23,10 +23,8 @@ import re
 from pathlib import Path
 
 import numpy as np
-import soundfile
 
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.fileio import atomic_path
 from dancesynth.core.skeleton import COCO17_TO_BODY25, PoseSequence, from_partial, resample
 from stage1_pose.beats import beat_times, tempo
 from stage1_pose.data.layout import (
@@ -39,6 +37,7 @@ from stage1_pose.data.layout import (
     create_layout,
     read_manifest,
     split_for_new_song,
+    write_audio,
     write_beats,
     write_manifest,
 )
@@ -102,8 +101,7 @@ def add_clip_samples(out_dir: str | os.PathLike, poses: PoseSequence, samples: n
     same_song = [c.split for c in clips if c.song == song]
     split = split or (same_song[0] if same_song else split_for_new_song(song))
     paths = clip_paths(clip_id)
-    with atomic_path(root / paths["audio"]) as tmp:
-        soundfile.write(tmp, samples, SAMPLE_RATE, subtype="PCM_16")
+    write_audio(root / paths["audio"], samples, SAMPLE_RATE)
     poses.save(root / paths["poses"])
     beats = beat_times(samples, SAMPLE_RATE)
     # A tracker gives no bar positions; every fourth beat from the first is the usual 4/4 guess.

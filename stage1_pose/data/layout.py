@@ -7,6 +7,7 @@ worker processes) need to write a dataset folder.
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import os
 import re
@@ -15,6 +16,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
+import soundfile
 
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
@@ -69,6 +71,15 @@ def write_json(path: str | os.PathLike, data: dict) -> None:
     """Write ``data`` as JSON atomically."""
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(data, indent=1))
+
+
+def write_audio(path: str | os.PathLike, samples: np.ndarray, sample_rate: int) -> None:
+    """Write mono float ``samples`` as a 16-bit WAV atomically. The WAV is encoded in memory and written by Python,
+    because libsndfile reports a full disk or a read-only one only as "System error"."""
+    encoded = io.BytesIO()
+    soundfile.write(encoded, samples, sample_rate, subtype="PCM_16", format="WAV")
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(encoded.getvalue())
 
 
 def write_beats(path: str | os.PathLike, beats: np.ndarray, downbeats: np.ndarray, tempo: float, source: str) -> None:

@@ -11,10 +11,8 @@ import os
 from pathlib import Path
 
 import numpy as np
-import soundfile
 
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.fileio import atomic_path
 from dancesynth.core.progress import track
 from stage1_pose.data.layout import (
     MANIFEST,
@@ -24,6 +22,7 @@ from stage1_pose.data.layout import (
     clip_paths,
     create_layout,
     split_songs,
+    write_audio,
     write_beats,
     write_manifest,
 )
@@ -45,8 +44,7 @@ def _make_clip(job: tuple[str, int, str, float, np.random.SeedSequence]) -> Clip
     song = synthesize_song(style, seconds, rng)
     frames = num_pose_frames(len(song.samples), song.sample_rate, POSE_FPS)
     dance = synthesize_dance(style, song.beats, frames, rng)
-    with atomic_path(Path(root) / paths["audio"]) as tmp:
-        soundfile.write(tmp, song.samples, song.sample_rate, subtype="PCM_16")
+    write_audio(Path(root) / paths["audio"], song.samples, song.sample_rate)
     dance.save(Path(root) / paths["poses"])
     write_beats(Path(root) / paths["beats"], song.beats, song.downbeats, song.tempo, "exact")
     return Clip(id=clip_id, song=clip_id, style=style_name, split="train", **paths)

@@ -1,5 +1,9 @@
 """`dancesynth extract-poses` end to end on a short video made from a real photo."""
 
+import subprocess
+import sys
+from pathlib import Path
+
 import cv2
 import numpy as np
 import skimage.data
@@ -40,3 +44,21 @@ def test_extract_poses_reports_user_errors_without_traceback(tmp_path, capsys):
     assert main([NAME, str(video), "--out", str(tmp_path / "p.npz"), "--smoothing", "savgol", "--window", "-1"]) == 1
     assert "must be positive" in capsys.readouterr().err
 
+
+
+def test_quiet_shows_only_warnings_not_mediapipe_log_lines(tmp_path, truncated_video):
+    """mediapipe's native absl / TF Lite lines ignore every setting; -q hides them, but not dancesynth's warnings."""
+    person = cv2.resize(skimage.data.astronaut(), (160, 160), interpolation=cv2.INTER_AREA)
+    frames = []
+    for t in range(16):
+        frame = np.full((200, 240, 3), 60, np.uint8)
+        frame[20:180, 10 + 2 * t:170 + 2 * t] = person
+        frames.append(frame)
+    video = truncated_video(frames, tmp_path / "cut.mp4", fps=12)
+    done = subprocess.run([sys.executable, "-m", "apps.cli", NAME, "-q", str(video), "--out", str(tmp_path / "p.npz")],
+                          capture_output=True, text=True, cwd=Path(__file__).parents[2], timeout=300)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout == ""
+    lines = done.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"warning: {video} decoded only"), done.stderr
+    assert len(PoseSequence.load(tmp_path / "p.npz")) < 16

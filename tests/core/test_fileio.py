@@ -112,3 +112,30 @@ def test_read_only_disk_is_one_sentence_even_when_cleanup_fails(tmp_path, monkey
 def test_os_errors_become_a_sentence_with_what_to_do(code, hint):
     message = os_error_sentence(OSError(code, os.strerror(code), "/data/out.mp4"))
     assert "/data/out.mp4" in message and hint in message and message.endswith(".")
+
+
+def _plain_mode(folder: bool = False) -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return (0o777 if folder else 0o666) & ~mask
+
+
+def test_outputs_get_the_mode_a_plain_open_would_give(tmp_path):
+    """Writers that create 0600 files (safetensors, tempfile) still leave the output readable like any other."""
+    new, existing = tmp_path / "new.bin", tmp_path / "existing.bin"
+    existing.write_bytes(b"old")
+    existing.chmod(0o640)
+    for path in (new, existing):
+        with atomic_path(path) as tmp:
+            tmp.write_bytes(b"data")
+            tmp.chmod(0o600)
+    assert new.stat().st_mode & 0o777 == _plain_mode()
+    assert existing.stat().st_mode & 0o777 == 0o640
+    with atomic_path(tmp_path / "run", folder=True) as tmp:
+        (tmp / "inner").mkdir(parents=True)
+        (tmp / "inner" / "weights").write_bytes(b"w")
+        (tmp / "inner" / "weights").chmod(0o600)
+        tmp.chmod(0o700)
+    assert (tmp_path / "run").stat().st_mode & 0o777 == _plain_mode(folder=True)
+    assert (tmp_path / "run" / "inner").stat().st_mode & 0o777 == _plain_mode(folder=True)
+    assert (tmp_path / "run" / "inner" / "weights").stat().st_mode & 0o777 == _plain_mode()

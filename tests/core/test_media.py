@@ -148,3 +148,16 @@ def test_errors(tmp_path):
         container.add_stream("libx264", rate=15)
     with pytest.raises(DancesynthError):
         list(media.read_frames(no_frames))
+
+
+def test_a_truncated_video_that_still_decodes_part_of_its_frames_is_a_warning(tmp_path, caplog, truncated_video):
+    frames = [np.random.default_rng(i).integers(0, 255, (32, 32, 3), dtype=np.uint8) for i in range(60)]
+    cut = truncated_video(frames, tmp_path / "cut.mp4")
+    with caplog.at_level("WARNING", logger="dancesynth"):
+        assert len(list(media.read_frames(tmp_path / "whole_cut.mp4"))) == 60
+        assert not caplog.records
+        decoded = len(list(media.read_frames(cut)))
+    assert 0 < decoded < 60
+    assert [r.getMessage() for r in caplog.records] == [
+        f"{cut} decoded only {decoded} of the 60 frames its header declares; the file looks truncated (an "
+        "interrupted download or copy), so only those frames are used."]

@@ -1,4 +1,5 @@
 import csv
+import json
 import os
 import random
 import shutil
@@ -241,3 +242,25 @@ if __name__ == "__main__":
             _train_and_die(Path(sys.argv[1]) / point, point)
             os._exit(0)
         print(f"{point}:{os.WTERMSIG(os.waitpid(child, 0)[1])}", flush=True)
+
+
+def test_every_file_a_run_writes_has_the_same_mode(straight):
+    """safetensors creates its files 0600; a run's files are readable like the rest (0644 with umask 022)."""
+    modes = {path.relative_to(straight).as_posix(): path.stat().st_mode & 0o777
+             for path in straight.rglob("*") if path.is_file()}
+    assert len(set(modes.values())) == 1, modes
+    mask = os.umask(0o022)
+    os.umask(mask)
+    assert set(modes.values()) == {0o666 & ~mask}
+
+
+def test_an_edited_pointer_naming_another_folder_deletes_no_checkpoint(straight, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(straight, run)
+    meta = (run / "latest.json").read_text()
+    current = next(p.name for p in run.iterdir() if p.name.startswith("ckpt-"))
+    for name in ("../elsewhere", "ckpt-00000009-0", 5):
+        (run / "latest.json").write_text(meta.replace(f'"{current}"', json.dumps(name)))
+        with pytest.raises(DancesynthError, match="latest.json|is missing"):
+            RunFolder(run, "toy", CPU, resume=True).restore(nn.Linear(3, 1), {})
+        assert (run / current / "model.safetensors").is_file()
