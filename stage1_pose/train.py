@@ -88,7 +88,7 @@ def rank_batches(order: list[int], batch_size: int, rank: int, world: int) -> li
     return [order[b * batch_size + rank * per_rank: b * batch_size + (rank + 1) * per_rank] for b in range(full)]
 
 
-class Trainer:
+class PoseTrainer:
     """State of one training run (see the module docstring). Use :func:`train`."""
 
     def __init__(self, method_name: str, data_dir: Path, run: RunFolder, config: Any, options: TrainerConfig,
@@ -256,7 +256,7 @@ def train(method_name: str, data_dir: str | os.PathLike, out_dir: str | os.PathL
                                       stride_frames=saved["stride_frames"])
     else:
         config = make_config(method_name, preset, overrides)
-    trainer = Trainer(method_name, Path(data_dir), run, config, options, dev)
+    trainer = PoseTrainer(method_name, Path(data_dir), run, config, options, dev)
     if resume:
         trainer.restore()
     return trainer.run()

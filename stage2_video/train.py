@@ -66,7 +66,7 @@ class TrainOptions:
     max_steps: int | None = None
 
 
-class Trainer:
+class VideoTrainer:
     """Holds the model, optimizers, data and position of one run; :meth:`fit` trains until a budget is spent."""
 
     def __init__(self, config: Pix2PixHDConfig, target: TargetVideo, run: RunFolder, device: torch.device,
@@ -290,7 +290,7 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
     frames = cache_frames(video, framing, run_dir, len(seq))
     if run.writer:
         run.barrier()
-    trainer = Trainer(config, TargetVideo(frames, seq, framing), run, dev, build_vgg_loss(vgg_weights),
+    trainer = VideoTrainer(config, TargetVideo(frames, seq, framing), run, dev, build_vgg_loss(vgg_weights),
                       options, str(video))
     if resume:
         trainer.restore()

@@ -83,3 +83,8 @@ class Stage1Method(nn.Module, abc.ABC):
         if self._sync_gradients is not None:
             self._sync_gradients([p for g in opt.param_groups for p in g["params"]])
         opt.step()
+
+
+def bce_with_constant_target(logits: torch.Tensor, target: float) -> torch.Tensor:
+    """Binary cross-entropy of ``logits`` (any shape) against one label for all (GAN: 1 = real, 0 = generated)."""
+    return nn.functional.binary_cross_entropy_with_logits(logits, torch.full_like(logits, target))

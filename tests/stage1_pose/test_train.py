@@ -108,10 +108,10 @@ def _ddp_worker(rank: int, data: str, out: str, port: int) -> None:
     from dancesynth.core.device import resolve_device
     from dancesynth.core.runs import RunFolder
     from stage1_pose.registry import make_config
-    from stage1_pose.train import KIND, Trainer
+    from stage1_pose.train import KIND, PoseTrainer
 
     device = resolve_device("cpu")
-    trainer = Trainer("lstm", Path(data), RunFolder(out, KIND, device), make_config("lstm", "small", TINY_LSTM),
+    trainer = PoseTrainer("lstm", Path(data), RunFolder(out, KIND, device), make_config("lstm", "small", TINY_LSTM),
                       TrainerConfig(epochs=1, preview_every=0), device)
     trainer.run()
     torch.save(trainer.method.state_dict(), Path(out).parent / f"rank{rank}.pt")

@@ -38,7 +38,7 @@ from torch import nn
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.motion import kinematic_beats
 from dancesynth.core.skeleton import NUM_JOINTS, ROOT
-from stage1_pose.models.base import Batch, Stage1Method
+from stage1_pose.models.base import Batch, Stage1Method, bce_with_constant_target
 from stage1_pose.models.dancing2music import dance_units as du
 from stage1_pose.models.gaussian import kl_to_standard_normal, reparameterize
 
@@ -313,10 +313,6 @@ class MovementDiscriminator(nn.Module):
         return self.net(self.seq_gru(torch.cat([z_movs, a], dim=-1))[1][0]).squeeze(-1)
 
 
-def _bce(logits: torch.Tensor, target: float) -> torch.Tensor:
-    return F.binary_cross_entropy_with_logits(logits, torch.full_like(logits, target))
-
-
 class Dancing2MusicMethod(Stage1Method):
     """Dancing2Music as a stage-1 method: optimizers ``vae`` and ``style`` (decomposition phase), ``gen`` and
     ``disc`` (composition phase)."""
@@ -479,16 +475,16 @@ class Dancing2MusicMethod(Stage1Method):
         z_dan_music = self.e_std(s, torch.randn(n_seq, c.noise_dim, device=units.device))
         z_mov_hat, z_mov_music = self.g_dan(z_dan, n), self.g_dan(z_dan_music, n)
 
-        d_loss = 0.5 * (_bce(self.d_mov(z_mov_hat.detach(), music), 1.0)
-                        + _bce(self.d_mov(z_mov_music.detach(), music), 0.0)
-                        + _bce(self.d_dan(z_dan.detach()).squeeze(-1), 1.0)
-                        + _bce(self.d_dan(z_dan_music.detach()).squeeze(-1), 0.0))
+        d_loss = 0.5 * (bce_with_constant_target(self.d_mov(z_mov_hat.detach(), music), 1.0)
+                        + bce_with_constant_target(self.d_mov(z_mov_music.detach(), music), 0.0)
+                        + bce_with_constant_target(self.d_dan(z_dan.detach()).squeeze(-1), 1.0)
+                        + bce_with_constant_target(self.d_dan(z_dan_music.detach()).squeeze(-1), 0.0))
         self.optimize("disc", d_loss)
 
         recon = F.l1_loss(z_mov_hat, z_mov)
         style = (self.e_sty(z_dan) - s).abs().mean() + (self.e_sty(z_dan_music) - s).abs().mean()
-        adv_mov = _bce(self.d_mov(z_mov_music, music), 1.0)
-        adv_dan = _bce(self.d_dan(z_dan_music).squeeze(-1), 1.0)
+        adv_mov = bce_with_constant_target(self.d_mov(z_mov_music, music), 1.0)
+        adv_dan = bce_with_constant_target(self.d_dan(z_dan_music).squeeze(-1), 1.0)
         kl = kl_to_standard_normal(mu, logvar)
         total = recon + c.w_style * style + c.w_adv * (adv_mov + adv_dan) + c.w_kl * kl
         self.optimize("gen", total)

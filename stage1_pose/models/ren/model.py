@@ -25,7 +25,7 @@ from torch import nn
 
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import NUM_JOINTS
-from stage1_pose.models.base import Batch, Stage1Method
+from stage1_pose.models.base import Batch, Stage1Method, bce_with_constant_target
 from stage1_pose.models.ren.perceptual import PosePerceptualLoss
 from stage1_pose.models.ren.variety import best_of, held_noise
 
@@ -415,10 +415,6 @@ def frozen(*modules: nn.Module) -> Iterator[None]:
             p.requires_grad_(True)
 
 
-def _bce(logits: torch.Tensor, target: float) -> torch.Tensor:
-    return F.binary_cross_entropy_with_logits(logits, torch.full_like(logits, target))
-
-
 class RenMethod(Stage1Method):
     """Ren et al. 2020 as a stage-1 method: optimizers ``G``, ``D_local``, ``D_global`` (those the config's
     ablation row uses)."""
@@ -464,23 +460,24 @@ class RenMethod(Stage1Method):
         logs: dict[str, float] = {}
 
         if self.d_local is not None:
-            loss = 0.5 * (_bce(self.d_local(real), 1.0) + _bce(self.d_local(fake.detach()), 0.0))
+            loss = 0.5 * (bce_with_constant_target(self.d_local(real), 1.0)
+                          + bce_with_constant_target(self.d_local(fake.detach()), 0.0))
             self.optimize("D_local", loss)
             logs["d_local"] = loss.item()
 
         if self.d_global is not None:
             f_m, attn = self.d_global.encode_music(audio)
             logit_real = self.d_global.judge(real, f_m)[0]
-            negatives = [_bce(self.d_global.judge(fake.detach(), f_m)[0], 0.0)]
+            negatives = [bce_with_constant_target(self.d_global.judge(fake.detach(), f_m)[0], 0.0)]
             if real.shape[0] > 1:
                 # Real dance on another clip's music: teaches D the dance-music correspondence.
-                negatives.append(_bce(self.d_global.judge(real, f_m.roll(1, dims=0))[0], 0.0))
+                negatives.append(bce_with_constant_target(self.d_global.judge(real, f_m.roll(1, dims=0))[0], 0.0))
             # Penalised w.r.t. the poses only: real and fake share the music, so there is nothing to
             # interpolate on that side (and no double backward through the GRU is needed).
             f_m_const = f_m.detach()
             gp = gradient_penalty(lambda x: self.d_global.judge(x, f_m_const)[0], real, fake)
             penalty = attention_penalty(attn)
-            loss = (0.5 * (_bce(logit_real, 1.0) + sum(negatives) / len(negatives))
+            loss = (0.5 * (bce_with_constant_target(logit_real, 1.0) + sum(negatives) / len(negatives))
                     + cfg.w_gp * gp + cfg.w_attention * penalty)
             self.optimize("D_global", loss)
             logs.update(d_global=loss.item(), gp=gp.item(), attn_penalty=penalty.item())
@@ -494,14 +491,14 @@ class RenMethod(Stage1Method):
                 loss = loss + cfg.w_velocity * velocity
                 logs["velocity"] = velocity.item()
             if self.d_local is not None:
-                adv_local = _bce(self.d_local(fake), 1.0)
+                adv_local = bce_with_constant_target(self.d_local(fake), 1.0)
                 loss = loss + cfg.w_local * adv_local
                 logs["g_local"] = adv_local.item()
             if self.d_global is not None:
                 f_m = self.d_global.encode_music(audio)[0]
                 logit_fake, feats_fake = self.d_global.judge(fake, f_m)
                 feats_real = self.d_global.judge(real, f_m)[1]
-                adv_global, fm = _bce(logit_fake, 1.0), feature_matching(feats_real, feats_fake)
+                adv_global, fm = bce_with_constant_target(logit_fake, 1.0), feature_matching(feats_real, feats_fake)
                 loss = loss + cfg.w_global * adv_global + cfg.w_fm * fm
                 logs.update(g_global=adv_global.item(), fm=fm.item())
             if self.perceptual is not None:
