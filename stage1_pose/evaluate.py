@@ -8,7 +8,8 @@ Rows ("contenders"):
   * one row per model run folder (:func:`stage1_pose.generate.generate_dance`).
 Each row is evaluated ``trials`` times with seeds 0..trials-1; table values are mean +- std over trials.
 FID compares windows (the style classifier's ``window_frames``, 4 s) of the row's dances with the windows of
-the training split's real dances.
+the training split's real dances. Physical plausibility is judged against the song's real dance: bone lengths
+against the median length of each bone over the real dance, joint speed as a multiple of the real dances' speed.
 """
 
 from __future__ import annotations
@@ -25,7 +26,15 @@ import numpy as np
 from dancesynth.core.checkpoint import load_meta
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
-from dancesynth.core.motion import kinematic_beats, velocity_minimum_beats
+from dancesynth.core.motion import (
+    bone_length_errors,
+    kinematic_beats,
+    legs_arms_speed_ratio,
+    mean_jerk,
+    mean_speed,
+    reference_bone_lengths,
+    velocity_minimum_beats,
+)
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence, resample
 from stage1_pose import metrics
@@ -75,13 +84,18 @@ class Contender:
 
 @dataclass
 class DanceScores:
-    """Per-dance quantities the row metrics are aggregated from."""
+    """Per-dance quantities the row metrics are aggregated from: classifier output, kinematic beats (frames),
+    ``[T, B]`` relative bone-length errors, mean joint speed (px/s), legs/arms speed ratio and jerk (px/s^3)."""
 
     predicted: int
     feature: np.ndarray
     windows: np.ndarray
     d2m_beats: np.ndarray
     vmin_beats: np.ndarray
+    bone_errors: np.ndarray
+    speed: float
+    legs_arms: float
+    jerk: float
 
 
 @dataclass
@@ -115,6 +129,11 @@ COLUMNS: tuple[tuple[str, str, float, int], ...] = (
     ("beat_align", "BAS", 1.0, 3),
     ("diversity", "Diversity", 1.0, 2),
     ("cross_modal", "Cross-modal dist. ↓", 1.0, 2),
+    ("bone_error", "Bone len. err. % ↓", 100.0, 1),
+    ("bone_error_p99", "Bone len. err. p99 % ↓", 100.0, 1),
+    ("speed_vs_real", "Speed / real", 1.0, 2),
+    ("legs_arms", "Legs/arms speed", 1.0, 2),
+    ("jerk", "Jerk px/s³", 1.0, 0),
 )
 
 
@@ -206,11 +225,21 @@ def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[He
     return Contender(Path(run_dir).name, make)
 
 
-def score_dance(dance: PoseSequence, clf: LoadedStyleClassifier) -> DanceScores:
-    """Classifier embedding and both kinematic beat sets (frame indices) of one dance."""
+def score_dance(dance: PoseSequence, song: HeldOutSong, clf: LoadedStyleClassifier) -> DanceScores:
+    """Classifier embedding, both kinematic beat sets (frame indices) and the motion measures of one dance to
+    ``song``; bone lengths are compared with the median lengths of the song's real dance."""
     pred, feat, windows = clf.embed(dance)
-    return DanceScores(pred, feat, windows, np.asarray(kinematic_beats(dance.xy, dance.fps)),
-                       np.asarray(velocity_minimum_beats(dance.xy, dance.fps)))
+    xy = dance.xy
+    return DanceScores(pred, feat, windows, np.asarray(kinematic_beats(xy, dance.fps)),
+                       np.asarray(velocity_minimum_beats(xy, dance.fps)),
+                       bone_length_errors(xy, reference_bone_lengths(song.real.xy)), mean_speed(xy, dance.fps),
+                       legs_arms_speed_ratio(xy, dance.fps), mean_jerk(xy, dance.fps))
+
+
+def _nanmean(values: list[float] | np.ndarray) -> float:
+    """Mean of the finite values; NaN (without a warning) when there are none."""
+    a = np.asarray(values, np.float64)
+    return float(a[np.isfinite(a)].mean()) if np.isfinite(a).any() else float("nan")
 
 
 def trial_metrics(scores: list[DanceScores], songs: list[HeldOutSong], ref: Reference, fps: float,
@@ -229,11 +258,19 @@ def trial_metrics(scores: list[DanceScores], songs: list[HeldOutSong], ref: Refe
                                                     np.stack([s.music for s in songs]), ref.music,
                                                     ref.dance_features),
     }
+    bones = np.concatenate([d.bone_errors for d in scores]).ravel()
+    bones = bones[np.isfinite(bones)]
+    real_speed = np.mean([mean_speed(s.real.xy, fps) for s in songs])
+    out["bone_error"] = float(bones.mean()) if bones.size else float("nan")
+    out["bone_error_p99"] = float(np.percentile(bones, 99)) if bones.size else float("nan")
+    out["speed_vs_real"] = float(np.mean([d.speed for d in scores]) / real_speed) if real_speed > 0 else float("nan")
+    out["legs_arms"] = _nanmean([d.legs_arms for d in scores])
+    out["jerk"] = _nanmean([d.jerk for d in scores])
     for tag in ("d2m", "vmin"):
         kin = [getattr(d, f"{tag}_beats") for d in scores]
         out[f"coverage_{tag}"] = float(np.nanmean([metrics.beat_coverage(k, m) for k, m in zip(kin, music_frames)]))
         hits = [metrics.beat_hit_rate(k, m, tolerance_frames) for k, m in zip(kin, music_frames)]
-        out[f"hit_rate_{tag}"] = float(np.nanmean(hits)) if np.isfinite(hits).any() else float("nan")
+        out[f"hit_rate_{tag}"] = _nanmean(hits)
     return out
 
 
@@ -251,7 +288,7 @@ def evaluate_contender(contender: Contender, songs: list[HeldOutSong], ref: Refe
             dance = contender.make(i, seed)
             if on_dance is not None:
                 on_dance(contender.name, i, seed, dance)
-            scores.append(score_dance(dance, clf))
+            scores.append(score_dance(dance, songs[i], clf))
             bar.update()
         all_scores.append(scores)
         for k, v in trial_metrics(scores, songs, ref, songs[0].real.fps, tolerance_frames).items():
@@ -315,7 +352,10 @@ def write_report(out_dir: Path, rows: list[RowResult], info: dict) -> None:
             "beats, vel-min = local minima of smoothed joint speed (Bailando); a kinematic beat hits when a music "
             "beat is within "
             f"±{info['tolerance_frames']} frames. BAS σ = {metrics.DEFAULT_BAS_SIGMA_SECONDS} s. "
-            "Multimodality is over seeds for the same song (– where undefined).\n\n"
+            "Multimodality is over seeds for the same song (– where undefined). Bone-length error: |length − the "
+            "median length of that bone in the song's real dance| / that median, mean and 99th percentile over "
+            "frames and bones; speed: mean joint speed / the real dances' on the same songs; legs/arms: mean "
+            "speed of knees, ankles and feet / of elbows and wrists; jerk: mean |d³x/dt³| of the joints.\n\n"
             "![FID over time](fid_over_time.png)\n\n![Beat alignment](beat_alignment.png)\n")
     with atomic_path(out_dir / "report.md") as tmp:
         tmp.write_text(text)

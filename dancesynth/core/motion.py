@@ -1,4 +1,5 @@
-"""Motion measures of a dance: joint speed, speed by beat phase, seed distance, movement beats and their chance rate.
+"""Motion measures of a dance: joint speed, speed by beat phase, seed distance, movement beats and their chance rate,
+and physical plausibility (bone-length error, legs/arms speed ratio, jerk).
 
 Speeds are in the units of the positions per second: pixels per second of the canvas for a
 :class:`~dancesynth.core.skeleton.PoseSequence`'s ``xy``; pass ``unit_length=body_scale(seq)`` (the torso length
@@ -24,7 +25,11 @@ import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.signal import find_peaks
 
-from dancesynth.core.skeleton import ROOT
+from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX, ROOT
+
+LEG_JOINTS: tuple[int, ...] = tuple(JOINT_INDEX[n] for n in (
+    "RKnee", "RAnkle", "LKnee", "LAnkle", "LBigToe", "LSmallToe", "LHeel", "RBigToe", "RSmallToe", "RHeel"))
+ARM_JOINTS: tuple[int, ...] = tuple(JOINT_INDEX[n] for n in ("RElbow", "RWrist", "LElbow", "LWrist"))
 
 # A kinematic beat within this many pose frames of a music beat is "aligned": +-2 frames = +-133 ms at 15 fps.
 DEFAULT_TOLERANCE_FRAMES = 2
@@ -70,6 +75,45 @@ def speed_by_beat_phase(xy: np.ndarray, beat_frames: np.ndarray, fps: float, bin
     phase = (t[inside] - start) / (beats[k[inside] + 1] - start)
     part = np.minimum((phase * bins).astype(np.int64), bins - 1)
     return np.array([speed[inside][part == i].mean() if (part == i).any() else np.nan for i in range(bins)])
+
+
+def bone_lengths(xy: np.ndarray) -> np.ndarray:
+    """``[T, B]`` length of each bone of :data:`~dancesynth.core.skeleton.BODY25_LIMBS` in ``[T, 25, 2]``
+    positions, in their unit (e.g. pixels)."""
+    xy = np.asarray(xy, dtype=np.float64)
+    parent, child = np.array(BODY25_LIMBS).T
+    return np.linalg.norm(xy[:, child] - xy[:, parent], axis=-1)
+
+
+def reference_bone_lengths(xy: np.ndarray) -> np.ndarray:
+    """``[B]`` median over frames of :func:`bone_lengths`: a dancer's body, robust to a few bad frames."""
+    return np.median(bone_lengths(xy), axis=0)
+
+
+def bone_length_errors(xy: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """``[T, B]`` relative bone-length error ``|length_t - reference| / reference`` of ``[T, 25, 2]`` positions
+    against ``[B]`` reference lengths (:func:`reference_bone_lengths`, same unit); NaN for zero-length references
+    (a bone the reference dancer lacks)."""
+    ref = np.asarray(reference, dtype=np.float64)
+    safe = np.where(ref > 0, ref, np.nan)
+    return np.abs(bone_lengths(xy) - ref) / safe
+
+
+def legs_arms_speed_ratio(xy: np.ndarray, fps: float) -> float:
+    """Mean :func:`joint_speeds` of the knees, ankles and feet over that of the elbows and wrists (0 = legs still);
+    NaN when the arms do not move or there are fewer than two frames."""
+    speeds = joint_speeds(xy, fps)
+    arms = speeds[:, list(ARM_JOINTS)].mean() if speeds.size else 0.0
+    return float(speeds[:, list(LEG_JOINTS)].mean() / arms) if arms > 0 else float("nan")
+
+
+def mean_jerk(xy: np.ndarray, fps: float) -> float:
+    """Mean over frames and joints of the magnitude of the third time derivative of ``[T, J, 2]`` positions
+    (third finite difference x ``fps**3``), in units per second cubed; NaN for fewer than four frames."""
+    xy = _check(xy, fps)
+    if len(xy) < 4:
+        return float("nan")
+    return float(np.linalg.norm(np.diff(xy, n=3, axis=0), axis=-1).mean() * fps ** 3)
 
 
 class DanceDistance(NamedTuple):

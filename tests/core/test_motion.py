@@ -1,5 +1,6 @@
-"""Motion measures: speeds in known units, speed by beat phase, dance distance, chance hit rate, and kinematic beats
-found at constructed stops and on the music beats of the built-in dances."""
+"""Motion measures: speeds in known units, speed by beat phase, dance distance, chance hit rate, kinematic beats
+found at constructed stops and on the music beats of the built-in dances, and physical plausibility (bone-length
+error, legs/arms speed ratio, jerk) on constructed dances with known answers."""
 
 from __future__ import annotations
 
@@ -7,19 +8,26 @@ import numpy as np
 import pytest
 
 from dancesynth.core.motion import (
+    ARM_JOINTS,
+    LEG_JOINTS,
     DanceDistance,
     beats_aligned,
+    bone_length_errors,
+    bone_lengths,
     chance_hit_rate,
     dance_distance,
     joint_speeds,
     kinematic_beats,
     kinematic_offsets,
+    legs_arms_speed_ratio,
+    mean_jerk,
     mean_speed,
     motion_histogram,
+    reference_bone_lengths,
     speed_by_beat_phase,
     velocity_minimum_beats,
 )
-from dancesynth.core.skeleton import ROOT, normalize
+from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX, ROOT, normalize
 from stage1_pose.data.layout import POSE_FPS
 from stage1_pose.data.styles import STYLES
 from stage1_pose.data.synth_dance import synthesize_dance
@@ -129,3 +137,61 @@ def test_builtin_dances_hit_music_beats_far_above_chance(style):
             rates.append(beats_aligned(found, beat_frames, tolerance_frames=1).mean())
             chances.append(chance_hit_rate(found, beat_frames, frames, rng, shifts=50, tolerance_frames=1))
         assert np.mean(rates) > np.mean(chances) + 0.2, (rates, chances)
+
+
+def rotating_body(frames: int = 40) -> np.ndarray:
+    """``[frames, 25, 2]`` a random body turning rigidly about a point, a quarter turn per second at 15 fps."""
+    body = np.random.default_rng(0).uniform(-100, 100, (25, 2))
+    angle = 2 * np.pi * 0.25 * np.arange(frames) / 15.0
+    rot = np.stack([np.stack([np.cos(angle), -np.sin(angle)], -1), np.stack([np.sin(angle), np.cos(angle)], -1)], -2)
+    return np.einsum("tij,kj->tki", rot, body) + np.array([640.0, 360.0])
+
+
+def test_a_rigidly_turning_body_keeps_every_bone_length():
+    xy = rotating_body()
+    assert bone_lengths(xy).shape == (40, len(BODY25_LIMBS))
+    errors = bone_length_errors(xy, reference_bone_lengths(xy))
+    np.testing.assert_allclose(errors, 0.0, atol=1e-12)
+
+
+def test_a_forearm_stretched_2x_in_half_the_frames():
+    real = rotating_body(10)
+    xy = real.copy()
+    elbow, wrist = JOINT_INDEX["RElbow"], JOINT_INDEX["RWrist"]
+    xy[:5, wrist] = xy[:5, elbow] + 2 * (xy[:5, wrist] - xy[:5, elbow])
+    forearm = BODY25_LIMBS.index((elbow, wrist))
+    # Against the real dancer's body: error 1 in the 5 stretched frames of 1 bone of 24, else 0.
+    errors = bone_length_errors(xy, reference_bone_lengths(real))
+    assert errors.mean() == pytest.approx(5 / (10 * 24))
+    assert np.percentile(errors, 99) == pytest.approx(1.0)  # 5 of 240 values (2 %) are 1
+    np.testing.assert_allclose(np.delete(errors, forearm, axis=1), 0.0, atol=1e-12)
+    # Against its own median (1.5x the forearm): every frame of that bone is off by 1/3.
+    own = bone_length_errors(xy, reference_bone_lengths(xy))
+    np.testing.assert_allclose(own[:, forearm], 1 / 3)
+    assert own.mean() == pytest.approx(1 / 3 / 24)
+
+
+def test_a_bone_missing_from_the_reference_is_left_out():
+    xy = rotating_body(5)
+    ref = reference_bone_lengths(xy)
+    ref[0] = 0.0
+    errors = bone_length_errors(xy, ref)
+    assert np.isnan(errors[:, 0]).all() and np.isfinite(errors[:, 1:]).all()
+
+
+def test_a_joint_moving_as_t_cubed_has_jerk_6():
+    t = np.arange(30) / 15.0
+    xy = np.stack([t ** 3, np.zeros_like(t)], -1)[:, None, :]  # px, t in seconds
+    assert mean_jerk(xy, 15.0) == pytest.approx(6.0)
+    assert mean_jerk(np.full((10, 4, 2), 7.0), 15.0) == 0.0  # standing still
+    assert np.isnan(mean_jerk(rotating_body(3), 15.0))  # too short for a third derivative
+
+
+def test_legs_arms_speed_ratio():
+    t = np.arange(20)[:, None]
+    xy = np.zeros((20, 25, 2))
+    xy[:, list(ARM_JOINTS), 0] = 2.0 * t
+    assert legs_arms_speed_ratio(xy, 15.0) == 0.0  # legs still
+    xy[:, list(LEG_JOINTS), 1] = 1.0 * t
+    assert legs_arms_speed_ratio(xy, 15.0) == pytest.approx(0.5)
+    assert np.isnan(legs_arms_speed_ratio(np.zeros((20, 25, 2)), 15.0))  # arms still: undefined

@@ -1,4 +1,5 @@
-"""The evaluation driver end to end on a constructed dataset: real-dance and baseline rows, known answers."""
+"""The evaluation driver end to end on a constructed dataset: real-dance and baseline rows, known answers,
+and the physical-plausibility columns (zero bone-length error for the built-in real dances)."""
 
 import json
 
@@ -8,8 +9,23 @@ import soundfile
 import torch
 from test_style_classifier import toy_dance
 
-from stage1_pose.data.dataset import Clip, clip_paths, create_layout, write_beats, write_manifest
-from stage1_pose.evaluate import FROZEN, RANDOM_REAL, REAL, EvaluationOptions, fit_length, run_evaluation
+from stage1_pose.data.dataset import Clip, DanceDataset, clip_paths, create_layout, write_beats, write_manifest
+from stage1_pose.data.styles import STYLES
+from stage1_pose.data.synth_dance import synthesize_dance
+from stage1_pose.evaluate import (
+    COLUMNS,
+    FROZEN,
+    RANDOM_REAL,
+    REAL,
+    Contender,
+    EvaluationOptions,
+    HeldOutSong,
+    evaluate_contender,
+    fit_length,
+    load_reference,
+    obtain_classifier,
+    run_evaluation,
+)
 
 SR = 22050
 SECONDS = 8.0
@@ -61,11 +77,11 @@ def report(tmp_path_factory):
     options = EvaluationOptions(trials=2, seconds=SECONDS, device="cpu", classifier_preset="small",
                                 video_seconds=2.0, plot_seconds=SECONDS)
     rows = run_evaluation(data, [], out, options)
-    return data, out, {r.name: r for r in rows}
+    return data, out, {r.name: r for r in rows}, options
 
 
 def test_report_files_and_rows(report):
-    data, out, rows = report
+    data, out, rows, _ = report
     for name in ("report.md", "report.json", "fid_over_time.png", "beat_alignment.png"):
         assert (out / name).stat().st_size > 0
     assert len(list((out / "videos").glob("*.mp4"))) == 3
@@ -80,7 +96,7 @@ def test_report_files_and_rows(report):
 
 
 def test_real_dances_are_recognised_and_closer_to_training_data_than_a_frozen_pose(report):
-    _, _, rows = report
+    _, _, rows, _ = report
     real, frozen = rows[REAL].summary(), rows[FROZEN].summary()
     assert real["acc"]["mean"] == 1.0
     assert real["fid"]["mean"] < frozen["fid"]["mean"]
@@ -88,7 +104,7 @@ def test_real_dances_are_recognised_and_closer_to_training_data_than_a_frozen_po
 
 
 def test_frozen_dance_has_no_kinematic_beats_and_no_multimodality(report):
-    _, _, rows = report
+    _, _, rows, _ = report
     frozen = rows[FROZEN].summary()
     assert frozen["coverage_d2m"]["mean"] == pytest.approx(0.0, abs=0.05)
     assert frozen["beat_align"]["mean"] == pytest.approx(0.0, abs=0.05)
@@ -96,6 +112,38 @@ def test_frozen_dance_has_no_kinematic_beats_and_no_multimodality(report):
     assert np.isnan(rows[REAL].multimodality)
     assert rows[RANDOM_REAL].multimodality > 0.0
     assert frozen["diversity"]["mean"] == 0.0
+
+
+def test_plausibility_columns_in_the_report_with_known_answers_for_the_reference_rows(report):
+    _, out, rows, _ = report
+    header = (out / "report.md").read_text().splitlines()
+    saved = json.loads((out / "report.json").read_text())
+    for key, title, _, _ in COLUMNS[-5:]:
+        assert any(line.startswith("| Method |") and title in line for line in header)
+        assert all(key in r["summary"] for r in saved["rows"])
+    real, frozen = rows[REAL].summary(), rows[FROZEN].summary()
+    assert real["speed_vs_real"]["mean"] == pytest.approx(1.0)
+    assert real["legs_arms"]["mean"] > 0 and real["jerk"]["mean"] > 0
+    assert frozen["speed_vs_real"]["mean"] == 0.0 and frozen["jerk"]["mean"] == 0.0
+    assert np.isnan(frozen["legs_arms"]["mean"])  # nothing moves: the ratio is undefined
+    assert rows[FROZEN].per_trial["bone_error"][0] > 0  # the mean training pose is not the test dancer's body
+
+
+def test_built_in_real_dances_have_zero_bone_length_error(report):
+    data, _, _, options = report
+    ds = DanceDataset(data)
+    clf, _ = obtain_classifier(ds, options)  # cached by the report fixture
+    ref = load_reference(ds, clf)
+    beats = np.arange(0.2, SECONDS, 0.5)
+    songs = [HeldOutSong(f"built-in {name}", k, np.zeros(int(SECONDS * SR), np.float32), SR, beats,
+                         synthesize_dance(STYLES[name], beats, int(SECONDS * 15), np.random.default_rng(k)),
+                         ref.music[k]) for k, name in enumerate(sorted(STYLES))]
+    row = evaluate_contender(Contender(REAL, lambda i, seed: songs[i].real, stochastic=False), songs, ref, clf,
+                             trials=1, tolerance_frames=2).summary()
+    # Zero up to float32 pixel rounding (the report shows 0.0 %).
+    assert row["bone_error"]["mean"] == pytest.approx(0.0, abs=1e-4)
+    assert row["bone_error_p99"]["mean"] == pytest.approx(0.0, abs=1e-4)
+    assert row["speed_vs_real"]["mean"] == pytest.approx(1.0)
 
 
 def test_fit_length_cuts_and_loops():
