@@ -10,7 +10,7 @@ RUNS="$WORK/runs"
 export OMP_NUM_THREADS=${OMP_NUM_THREADS:-1}
 VENV_BIN="$(dirname "$0")/../.venv/bin/dancesynth"
 DANCESYNTH=${DANCESYNTH:-$([ -x "$VENV_BIN" ] && echo "$VENV_BIN" || echo dancesynth)}
-ds() { "$DANCESYNTH" -q "$@"; }
+ds() { "$DANCESYNTH" "$1" -q "${@:2}"; }
 [ -f "$DS/manifest.json" ] || ds make-dataset --out "$DS" --clips 60 --seconds 60
 for m in dance_revolution dancing2music; do
   [ -f "$RUNS/$m/latest.json" ] || ds train-pose --method "$m" --data "$DS" --out "$RUNS/$m" --preset small --preview-every 0
