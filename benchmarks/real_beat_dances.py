@@ -1,0 +1,105 @@
+"""Do generated dances land on the TRUE beats of real songs? Kinematic beats against annotated beats, and chance.
+
+    .venv/bin/python benchmarks/beat_benchmark.py fetch          # once: the real-music songs and their true beats
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/real_beat_dances.py --models RUN [RUN ...] [--per-song]
+
+For every trained stage-1 run, every song of the real-music beat benchmark (its first ``--seconds``) and every
+seed, the dance comes from :func:`stage1_pose.generate.generate_dance` (so the song's beats come from the project's
+tracker, as in ``dancesynth generate``). Its kinematic beats, by both definitions of :mod:`dancesynth.core.motion`
+(``vmin``: minima of the smoothed joint speed; ``d2m``: Dancing2Music's kinematic offsets), are scored against the
+song's annotated beats: the hit rate is the share of kinematic beats within +-1 and +-2 pose frames of a true beat,
+and chance is the same kinematic beats shifted circularly by random offsets (:func:`chance_hit_rate`). Per song the
+seeds are averaged; ``>=+0.10`` is the share of songs where hit >= chance + 0.10 (issue 21's goal: >= 80 %).
+``end/start`` is the mean joint speed of the last 10 s over that of the first 10 s (1 = no slow-down).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+from beat_benchmark import DEFAULT_CACHE, SR, _load
+
+from dancesynth.core.media import SONG_SAMPLE_RATE
+from dancesynth.core.motion import (
+    beats_aligned,
+    chance_hit_rate,
+    kinematic_beats,
+    mean_speed,
+    velocity_minimum_beats,
+)
+from stage1_pose.generate import generate_dance, load_pose_model
+
+TOLERANCES = (1, 2)
+DEFINITIONS = {"vmin": velocity_minimum_beats, "d2m": kinematic_beats}
+# Speed windows at the start and end of the dance, seconds.
+SPEED_WINDOW = 10.0
+GOAL_MARGIN = 0.10
+
+
+def _song_scores(xy: np.ndarray, fps: float, beats: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
+    """``{"vmin_hit1": ..., "vmin_chance1": ..., ...}`` of one ``[T, 25, 2]`` dance against true ``beats`` (s)."""
+    music = beats * fps
+    out = {}
+    for name, detect in DEFINITIONS.items():
+        kin = detect(xy, fps)
+        for tol in TOLERANCES:
+            out[f"{name}_hit{tol}"] = float(beats_aligned(kin, music, tol).mean()) if kin.size else float("nan")
+            out[f"{name}_chance{tol}"] = chance_hit_rate(kin, music, len(xy), rng, tolerance_frames=tol)
+    window = int(round(SPEED_WINDOW * fps))
+    out["end_over_start"] = mean_speed(xy[-window:], fps) / mean_speed(xy[:window], fps)
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--models", nargs="+", required=True, type=Path, help="trained stage-1 run folders")
+    parser.add_argument("--cache", type=Path, default=DEFAULT_CACHE)
+    parser.add_argument("--seconds", type=float, default=60.0, help="length of each song's excerpt")
+    parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1])
+    parser.add_argument("--per-song", action="store_true", help="print one row per model and song")
+    args = parser.parse_args()
+    assert SR == SONG_SAMPLE_RATE, "the benchmark cache must hold songs at the project's song sample rate"
+    infos = [json.loads(p.read_text()) for p in sorted((args.cache / "audio").glob("*.json"))]
+    if not infos:
+        raise SystemExit(f"No pieces in {args.cache}/audio: run `beat_benchmark.py fetch` first.")
+    songs = [(info, _load(args.cache / "audio" / f"{info['id']}.flac")[:int(args.seconds * SR)]) for info in infos]
+    rng = np.random.default_rng(0)
+    summary = {}
+    if args.per_song:
+        print(f"{'model':16s} {'song':28s} {'bpm':>4s}  vmin hit/chance+-2  d2m hit/chance+-2  end/start")
+    for run in args.models:
+        model = load_pose_model(run, device="cpu")
+        rows = []
+        for info, y in songs:
+            beats = np.asarray(info["beats"], np.float64)
+            beats = beats[beats < len(y) / SR]
+            per_seed = [_song_scores(generate_dance(model, y, SR, seed).keypoints[..., :2], model.fps, beats, rng)
+                        for seed in args.seeds]
+            row = {k: float(np.nanmean([s[k] for s in per_seed])) for k in per_seed[0]}
+            rows.append(row)
+            if args.per_song:
+                print(f"{run.name:16s} {info['id']:28s} {info['bpm']:4.0f}  "
+                      f"{row['vmin_hit2']:8.2f}/{row['vmin_chance2']:.2f}  "
+                      f"{row['d2m_hit2']:8.2f}/{row['d2m_chance2']:.2f}  {row['end_over_start']:9.2f}", flush=True)
+        summary[run.name] = rows
+    print(f"\n{len(songs)} songs x {args.seconds:.0f} s, seeds {args.seeds}; per song the seeds are averaged")
+    print(f"{'model':16s} {'beats':5s} " + " ".join(f"{'hit+-' + str(t):>7s} {'chance':>6s} {'>=+0.10':>7s}"
+                                                    for t in TOLERANCES) + "  end/start mean (min)")
+    for name, rows in summary.items():
+        for i, definition in enumerate(DEFINITIONS):
+            cells = []
+            for tol in TOLERANCES:
+                hit = np.array([r[f"{definition}_hit{tol}"] for r in rows])
+                chance = np.array([r[f"{definition}_chance{tol}"] for r in rows])
+                cells.append(f"{np.nanmean(hit):7.3f} {np.nanmean(chance):6.3f} "
+                             f"{np.mean(hit >= chance + GOAL_MARGIN):7.0%}")
+            speed = np.array([r["end_over_start"] for r in rows])
+            tail = f"  {speed.mean():.2f} ({speed.min():.2f})" if i == 0 else ""
+            print(f"{name:16s} {definition:5s} " + " ".join(cells) + tail)
+
+
+if __name__ == "__main__":
+    main()
