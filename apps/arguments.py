@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import math
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import NoReturn
 
@@ -40,44 +41,28 @@ def _number(text: str, kind: type) -> int | float:
     return value
 
 
-def positive_int(text: str) -> int:
-    """A whole number of at least 1 (epochs, batch size, steps, threads)."""
-    value = _number(text, int)
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
-    return value
+def _checked(kind: type, accept: Callable[[float], bool], says: str, doc: str) -> Callable[[str], int | float]:
+    """A ``type=`` function reading a ``kind`` number and refusing values ``accept`` rejects with ``says``."""
+
+    def parse(text: str) -> int | float:
+        value = _number(text, kind)
+        if not accept(value):
+            raise argparse.ArgumentTypeError(f"{says}, got {text!r}")
+        return value
+
+    parse.__doc__ = doc
+    return parse
 
 
-def non_negative_int(text: str) -> int:
-    """A whole number of at least 0 (seeds, worker counts, "0 = off" periods)."""
-    value = _number(text, int)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be 0 or more, got {text!r}")
-    return value
-
-
-def positive_float(text: str) -> float:
-    """A finite number greater than 0 (seconds, minutes, frame rates)."""
-    value = _number(text, float)
-    if value <= 0:
-        raise argparse.ArgumentTypeError(f"must be positive, got {text!r}")
-    return value
-
-
-def non_negative_float(text: str) -> float:
-    """A finite number of at least 0 (start times, tolerances)."""
-    value = _number(text, float)
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be 0 or more, got {text!r}")
-    return value
-
-
-def fraction(text: str) -> float:
-    """A number from 0 to 1."""
-    value = _number(text, float)
-    if not 0 <= value <= 1:
-        raise argparse.ArgumentTypeError(f"must be between 0 and 1, got {text!r}")
-    return value
+positive_int = _checked(int, lambda v: v >= 1, "must be positive",
+                        "A whole number of at least 1 (epochs, batch size, steps, threads).")
+non_negative_int = _checked(int, lambda v: v >= 0, "must be 0 or more",
+                            'A whole number of at least 0 (seeds, worker counts, "0 = off" periods).')
+positive_float = _checked(float, lambda v: v > 0, "must be positive",
+                          "A finite number greater than 0 (seconds, minutes, frame rates).")
+non_negative_float = _checked(float, lambda v: v >= 0, "must be 0 or more",
+                              "A finite number of at least 0 (start times, tolerances).")
+fraction = _checked(float, lambda v: 0 <= v <= 1, "must be between 0 and 1", "A number from 0 to 1.")
 
 
 def existing_file(text: str) -> str:
