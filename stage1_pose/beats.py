@@ -125,7 +125,9 @@ def _unswing(beats: np.ndarray, full: np.ndarray) -> np.ndarray:
     return beats
 
 
-def _track(samples: np.ndarray, sr: int) -> tuple[float, np.ndarray]:
+def track_beats(samples: np.ndarray, sr: int) -> tuple[float, np.ndarray]:
+    """``(tempo in BPM, beat times in seconds)`` of a mono ``[N]`` song at ``sr`` Hz in one pass (see
+    :func:`beat_times`)."""
     import librosa
 
     full, low, phase = _envelopes(samples, sr)
@@ -143,12 +145,12 @@ def beat_times(samples: np.ndarray, sr: int) -> np.ndarray:
     and a swing check that moves beats off swung off-beats. Beats are at the song's own metrical level (the
     tempo to dance at is :func:`dance_tempo`).
     """
-    return _track(samples, sr)[1]
+    return track_beats(samples, sr)[1]
 
 
 def tempo(samples: np.ndarray, sr: int) -> float:
     """Estimated tempo in beats per minute of a mono ``[N]`` song at ``sr`` Hz."""
-    return _track(samples, sr)[0]
+    return track_beats(samples, sr)[0]
 
 
 def dance_tempo(bpm: float) -> float:

@@ -26,7 +26,7 @@ import numpy as np
 
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import COCO17_TO_BODY25, PoseSequence, from_partial, resample
-from stage1_pose.beats import beat_times, tempo
+from stage1_pose.beats import track_beats
 from stage1_pose.data.layout import (
     MANIFEST,
     POSE_FPS,
@@ -103,9 +103,9 @@ def add_clip_samples(out_dir: str | os.PathLike, poses: PoseSequence, samples: n
     paths = clip_paths(clip_id)
     write_audio(root / paths["audio"], samples, SAMPLE_RATE)
     poses.save(root / paths["poses"])
-    beats = beat_times(samples, SAMPLE_RATE)
+    bpm, beats = track_beats(samples, SAMPLE_RATE)
     # A tracker gives no bar positions; every fourth beat from the first is the usual 4/4 guess.
-    write_beats(root / paths["beats"], beats, beats[::BEATS_PER_BAR], tempo(samples, SAMPLE_RATE), "tracked")
+    write_beats(root / paths["beats"], beats, beats[::BEATS_PER_BAR], bpm, "tracked")
     clip = Clip(id=clip_id, song=song, style=style, split=split, **paths)
     write_manifest(root, POSE_FPS, SAMPLE_RATE, styles + ([style] if style not in styles else []), clips + [clip])
     return clip

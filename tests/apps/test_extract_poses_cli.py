@@ -15,13 +15,19 @@ from dancesynth.core.skeleton import JOINT_INDEX, PoseSequence
 NAME = "extract-poses"
 
 
-def test_extract_poses_writes_poses_and_preview(tmp_path, capsys):
+def _person_moving_right(count: int, step: int) -> list[np.ndarray]:
+    """``count`` 240x200 frames of a photographed person shifted ``step`` pixels right per frame."""
     person = cv2.resize(skimage.data.astronaut(), (160, 160), interpolation=cv2.INTER_AREA)
     frames = []
-    for t in range(5):
+    for t in range(count):
         frame = np.full((200, 240, 3), 60, np.uint8)
-        frame[20:180, 10 + 10 * t:170 + 10 * t] = person
+        frame[20:180, 10 + step * t:170 + step * t] = person
         frames.append(frame)
+    return frames
+
+
+def test_extract_poses_writes_poses_and_preview(tmp_path, capsys):
+    frames = _person_moving_right(5, 10)
     video, out, preview = tmp_path / "clip.mp4", tmp_path / "poses.npz", tmp_path / "overlay.mp4"
     write_video(video, frames, 12)
     assert main([NAME, str(video), "--out", str(out), "--preview", str(preview)]) == 0
@@ -45,16 +51,9 @@ def test_extract_poses_reports_user_errors_without_traceback(tmp_path, capsys):
     assert "must be positive" in capsys.readouterr().err
 
 
-
 def test_quiet_shows_only_warnings_not_mediapipe_log_lines(tmp_path, truncated_video):
     """mediapipe's native absl / TF Lite lines ignore every setting; -q hides them, but not dancesynth's warnings."""
-    person = cv2.resize(skimage.data.astronaut(), (160, 160), interpolation=cv2.INTER_AREA)
-    frames = []
-    for t in range(16):
-        frame = np.full((200, 240, 3), 60, np.uint8)
-        frame[20:180, 10 + 2 * t:170 + 2 * t] = person
-        frames.append(frame)
-    video = truncated_video(frames, tmp_path / "cut.mp4", fps=12)
+    video = truncated_video(_person_moving_right(16, 2), tmp_path / "cut.mp4", fps=12)
     done = subprocess.run([sys.executable, "-m", "apps.cli", NAME, "-q", str(video), "--out", str(tmp_path / "p.npz")],
                           capture_output=True, text=True, cwd=Path(__file__).parents[2], timeout=300)
     assert done.returncode == 0, done.stderr
