@@ -108,3 +108,10 @@ def output_folder(text: str) -> str:
         raise argparse.ArgumentTypeError(f"cannot create {text}: {existing} is a file, not a folder")
     _writable_folder(existing, text)
     return text
+
+
+def add_precision_argument(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--precision auto|fp32|bf16|fp16`` (default auto) for the arithmetic of ``what`` (e.g. "rendering")."""
+    parser.add_argument("--precision", choices=("auto", "fp32", "bf16", "fp16"), default="auto",
+                        help=f"arithmetic of {what}: auto = bf16 on CPUs with AMX or AVX-512-BF16 and on GPUs "
+                             "(fp16 on GPUs without bf16), fp32 elsewhere; fp16 needs CUDA (default auto)")

@@ -1,8 +1,9 @@
 """`dancesynth demo`: from nothing to a dancing video within a time budget, on the built-in data.
 
 Steps (each skipped when its output already exists, so an interrupted demo continues where it stopped):
-built-in dataset -> small stage-1 model -> synthetic target-person video -> small stage-2 model ->
-dance for a held-out song (dance video, skeleton video, side-by-side) -> summary page with metrics.
+a few built-in songs -> synthetic target-person video -> appearance model (every minute of the budget but the
+dance step's) -> the shipped pose model dances a held-out song, composited into the target's scene at its
+resolution (dance video, skeleton video, side-by-side) -> summary page with metrics and frames.
 """
 
 from __future__ import annotations
@@ -10,20 +11,15 @@ from __future__ import annotations
 import csv
 import json
 import logging
-import multiprocessing
 import os
-import sys
 import time
-import traceback
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
-import torch
 
-from apps.cli import configure_logging
 from apps.pipeline import dance
+from dancesynth.core.device import resolve_device
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
 from dancesynth.core.media import SONG_SAMPLE_RATE, load_song, read_frames
@@ -33,35 +29,31 @@ from stage1_pose.data.dataset import Clip, DanceDataset
 from stage1_pose.data.make_dataset import make_dataset
 from stage1_pose.generate import generate_dance, load_pose_model
 from stage1_pose.metrics import beat_align_score, beat_coverage, beat_hit_rate
-from stage1_pose.train import TrainerConfig, train
+from stage1_pose.pretrained import DEFAULT_POSE_MODEL
+from stage2_video.models.pix2pixhd import affordable_preset
 from stage2_video.synthetic_person import appearance_preset, write_person_video
 from stage2_video.train import TrainOptions, train_video
 
 logger = logging.getLogger(__name__)
 
-# Dancing2Music warps its units onto the song's beats; trained for the demo's minutes, Dance Revolution held a
-# near-mean pose. Its composition phase (MM-GAN) needs far more than the demo's minutes: after 100 epochs it
-# composed movement codes a quarter the size of real ones and the dancer all but stood still, so the demo uses the
-# paper's ablation without it (movement codes drawn from the DU-VAE prior).
-POSE_METHOD = "dancing2music"
+SHIPPED_MODEL_DATA_SEED = 0  # scripts/build_pose_model.sh makes its dataset with make-dataset's default seed
 
 
 @dataclass(frozen=True)
 class DemoPlan:
-    """Sizes and time budget of the demo: both models train at the same time (one core each) until ``finish_minutes``
-    before the deadline (the dance step's time on 2 cores), each at least ``min_train_minutes``.
-    ``pose_preset`` is the stage-1 preset, ``pose_overrides`` change its fields (e.g. a shorter window for short
-    clips)."""
+    """Sizes and time budget of the demo: the appearance model trains until ``finish_minutes`` before the
+    deadline (the dance step's time), at least ``min_train_minutes``, at ``preset`` (``auto``: 256 px where
+    the hardware makes it affordable). ``clips`` built-in songs of ``clip_seconds`` give the target's dance (a
+    training song) and the song danced to (a held-out one)."""
 
-    clips: int = 40
+    clips: int = 10
     clip_seconds: float = 60.0
-    pose_preset: str = "small-nocomp"
-    finish_minutes: float = 3.0
+    finish_minutes: float = 2.0
     min_train_minutes: float = 0.5
     target_seconds: float = 60.0
     target_size: int = 512
     dance_seconds: float = 20.0
-    pose_overrides: dict[str, Any] = field(default_factory=dict)
+    preset: str = "auto"
 
 
 def _mean_speed(seq: PoseSequence) -> float:
@@ -95,31 +87,6 @@ def _contact_sheet(video: Path, out: Path, count: int = 6) -> None:
         cv2.imwrite(str(tmp), cv2.cvtColor(strip, cv2.COLOR_RGB2BGR))
 
 
-def _train_pose(log: Path, data_dir: Path, run: Path, preset: str, minutes: float, device: str,
-                overrides: dict[str, Any], seed: int) -> None:
-    """Stage-1 training in a child process: one thread, progress and errors written to ``log``, exit code 1 on a
-    user error (its message is the log's last line)."""
-    torch.set_num_threads(1)
-    with open(log, "w") as f:
-        sys.stdout = sys.stderr = f
-        configure_logging(logging.INFO, f)
-        try:
-            train(POSE_METHOD, data_dir, run, preset=preset, minutes=minutes, device=device, overrides=overrides,
-                  options=TrainerConfig(preview_every=50, seed=seed))
-        except DancesynthError as e:
-            print(f"error: {e}", flush=True)
-            sys.exit(1)
-        except Exception:
-            traceback.print_exc()
-            print("error: stage-1 training crashed (traceback above)", flush=True)
-            sys.exit(1)
-
-
-def _last_error(log: Path) -> str:
-    lines = [line for line in log.read_text(errors="replace").splitlines() if line.startswith("error: ")]
-    return lines[-1][len("error: "):] if lines else "the process stopped without a message"
-
-
 def _last_row(path: Path) -> dict[str, str]:
     with open(path) as f:
         rows = list(csv.DictReader(f))
@@ -130,7 +97,7 @@ def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, d
              plan: DemoPlan | None = None) -> list[Path]:
     """Run every demo step under ``out_dir`` within about ``minutes`` minutes; returns the files written."""
     if minutes <= 1:
-        raise DancesynthError("--minutes must be more than 1; the demo needs time to train two models.")
+        raise DancesynthError("--minutes must be more than 1; the demo needs time to train the appearance model.")
     plan = plan or DemoPlan()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -147,30 +114,12 @@ def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, d
 
     data_dir = out / "dataset"
     if not (data_dir / "manifest.json").is_file():
-        make_dataset(data_dir, clips=plan.clips, seconds=plan.clip_seconds, seed=seed)
+        # The shipped pose model learned the songs of dataset seed 0; any other seed makes songs it never heard.
+        make_dataset(data_dir, clips=plan.clips, seconds=plan.clip_seconds, seed=SHIPPED_MODEL_DATA_SEED + 1 + seed)
     dataset = DanceDataset(data_dir)
-    step("built-in dataset")
+    step("built-in songs")
 
-    # The two models are independent: stage 1 trains in a second process while this one makes the target video
-    # and trains stage 2, each on its own core, both until finish_minutes before the deadline.
-    train_until = deadline - plan.finish_minutes * 60.0
-    pose_run = out / "runs" / "pose" / POSE_METHOD
-    pose_job = None
-    if not (pose_run / "latest.json").is_file():
-        pose_run.mkdir(parents=True, exist_ok=True)
-        pose_log = pose_run / "train.log"
-        pose_minutes = max(plan.min_train_minutes, (train_until - time.monotonic()) / 60.0)
-        pose_job = multiprocessing.get_context("spawn").Process(
-            target=_train_pose, args=(pose_log, data_dir, pose_run, plan.pose_preset, pose_minutes, device,
-                                      plan.pose_overrides, seed))
-        pose_job.start()
-        logger.info(f"[demo] stage-1 training ({POSE_METHOD}, {pose_minutes:.1f} min) in the background, "
-                    f"log: {pose_log}")
-    threads = torch.get_num_threads()
-    if pose_job is not None:
-        torch.set_num_threads(1)
-
-    # The target person dances a training clip the pose model has seen; the held-out song is new to both.
+    # The target person dances one song, the dance is made for another.
     target_dir = out / "target"
     target_video, target_poses = target_dir / "target.mp4", target_dir / "target_poses.npz"
     if not target_video.is_file():
@@ -185,43 +134,33 @@ def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, d
     step("synthetic target video")
 
     video_run = out / "runs" / "video"
-    try:
-        if not (video_run / "latest.json").is_file():
-            video_minutes = max(plan.min_train_minutes, (train_until - time.monotonic()) / 60.0)
-            train_video(target_video, video_run, "small", TrainOptions(minutes=video_minutes),
-                        poses=target_poses, device=device)
-        step("stage-2 training")
-        if pose_job is not None:
-            pose_job.join()
-            if pose_job.exitcode != 0:
-                raise DancesynthError(f"Stage-1 training failed: {_last_error(pose_log)} (log: {pose_log}).")
-        step("stage-1 training (background)")
-    finally:
-        if pose_job is not None and pose_job.is_alive():
-            pose_job.terminate()
-            pose_job.join()
-        torch.set_num_threads(threads)
+    preset = plan.preset if plan.preset != "auto" else affordable_preset(resolve_device(device))
+    if not (video_run / "latest.json").is_file():
+        video_minutes = max(plan.min_train_minutes, (deadline - plan.finish_minutes * 60.0 - time.monotonic()) / 60.0)
+        train_video(target_video, video_run, preset, TrainOptions(minutes=video_minutes), poses=target_poses,
+                    device=device)
+    step(f"appearance model ({preset})")
 
     clip = liveliest(dataset, dataset.clips("test"))
     song = data_dir / clip.audio
-    written = dance(song, pose_run, video_run, out / "dance.mp4", seed=seed, duration=plan.dance_seconds,
+    written = dance(song, out / "dance.mp4", video_model=video_run, seed=seed, duration=plan.dance_seconds,
                     skeleton_preview=out / "skeleton.mp4", side_by_side=out / "side_by_side.mp4",
                     device=device).written
     step("dance for a held-out song")
 
-    written.append(_summary(out, dataset, clip, pose_run, video_run, timings, seed, device, plan))
+    written.append(_summary(out, dataset, clip, video_run, timings, seed, device, plan))
     return written
 
 
-def _summary(out: Path, dataset: DanceDataset, clip: Clip, pose_run: Path, video_run: Path,
-             timings: dict[str, float], seed: int, device: str, plan: DemoPlan) -> Path:
+def _summary(out: Path, dataset: DanceDataset, clip: Clip, video_run: Path, timings: dict[str, float], seed: int,
+             device: str, plan: DemoPlan) -> Path:
     seconds = plan.dance_seconds
     beats = np.array(json.loads((dataset.root / clip.beats).read_text())["beats"])
     samples = load_song(dataset.root / clip.audio, SONG_SAMPLE_RATE)[: int(seconds * SONG_SAMPLE_RATE)]
-    model = load_pose_model(pose_run, device)
+    model = load_pose_model(DEFAULT_POSE_MODEL, device)
     generated = generate_dance(model, samples, SONG_SAMPLE_RATE, seed=seed)
     real = dataset.load_poses(clip).slice_frames(0, len(generated))
-    rows = {f"generated ({POSE_METHOD}, {plan.pose_preset})": dance_metrics(generated, beats),
+    rows = {f"generated ({model.meta['method']}, shipped model)": dance_metrics(generated, beats),
             "real dance": dance_metrics(real, beats)}
     _contact_sheet(out / "side_by_side.mp4", out / "frames.png")
     val = _last_row(video_run / "validation.csv") if (video_run / "validation.csv").is_file() else {}
@@ -241,7 +180,7 @@ def _summary(out: Path, dataset: DanceDataset, clip: Clip, pose_run: Path, video
               "", "## Stage 2: held-out frames of the target video", ""]
     if val:
         lines += [f"SSIM {float(val['ssim']):.3f}, PSNR {float(val['psnr']):.2f} dB at step {val['step']}."]
-    lines += ["", f"Training curves: [stage 1](runs/pose/{POSE_METHOD}/) · [stage 2](runs/video/losses.png)", "",
+    lines += ["", "Training curve: [appearance model](runs/video/losses.png)", "",
               "## Time per step", "", "| step | seconds |", "|---|---|"]
     lines += [f"| {k} | {v:.0f} |" for k, v in timings.items()]
     path = out / "summary.md"

@@ -1,9 +1,11 @@
 """Song + trained models -> dancing video: the composition behind `dancesynth dance`.
 
-Data path (see docs/architecture.md): decode the song, cut the requested segment, stage 1 generates a dance at
-the pose model's fps, the dance is resampled to the target video's fps and normalised onto the target's
-body (Everybody Dance Now), stage 2 renders frames that stream into the H.264 encoder, and the segment's
-audio is muxed in. Every output is written under a temporary name and renamed when complete.
+Data path (see docs/architecture.md): decode the song, cut the requested segment, find (or train) the target's
+appearance model, stage 1 generates a dance at the pose model's fps, the dance is resampled to the target
+video's fps (C1 interpolation), normalised onto the target's body (Everybody Dance Now) and given the target's
+bone lengths, stage 2 renders model-resolution crops that are composited into the target's scene, frames stream
+into the H.264 encoder, and the segment's audio is muxed in. Every output is written under a temporary name and
+renamed when complete.
 """
 
 from __future__ import annotations
@@ -15,25 +17,36 @@ from pathlib import Path
 
 import numpy as np
 
+from dancesynth.core.device import resolve_device
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import SONG_SAMPLE_RATE, VideoWriter, load_song
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence, resample
 from stage1_pose.generate import generate_dance, load_pose_model
+from stage1_pose.pretrained import DEFAULT_POSE_MODEL
+from stage2_video.cache import appearance_model_for
+from stage2_video.composite import scene_compositor
 from stage2_video.framing import label_map
+from stage2_video.models.pix2pixhd import affordable_preset
 from stage2_video.render import load_appearance_model, render_frames, target_poses
+from stage2_video.retarget import retarget_onto
 
 # Method tried first when a folder of several pose-model runs is given without --method.
 DEFAULT_METHOD = "dance_revolution"
 
 
-def find_pose_run(path: str | os.PathLike, method: str | None = None) -> Path:
+def find_pose_run(path: str | os.PathLike | None, method: str | None = None) -> Path:
     """The stage-1 run folder to use.
 
     ``path`` is either a run folder (it holds ``latest.json``) or a folder of runs named after their method
     (as ``dancesynth demo`` writes them); ``method`` picks one of the latter, default ``dance_revolution``
-    or the only run present.
+    or the only run present. None = the pose model shipped with the package (Dance Revolution).
     """
+    if path is None:
+        if method not in (None, DEFAULT_METHOD):
+            raise DancesynthError(f"The built-in pose model is {DEFAULT_METHOD}; for {method}, train one with "
+                                  "`dancesynth train-pose` and pass it with --pose-model.")
+        return DEFAULT_POSE_MODEL
     path = Path(path)
     if (path / "latest.json").is_file():
         return path
@@ -70,29 +83,63 @@ def song_segment(samples: np.ndarray, sr: int, start: float = 0.0, duration: flo
 class DanceResult:
     """What :func:`dance` produced."""
 
-    poses: PoseSequence  # the generated dance at the output fps, on the target's canvas
+    poses: PoseSequence  # the generated dance at the output fps, on the target's canvas (pixels)
     written: list[Path] = field(default_factory=list)
+    video_model: Path | None = None  # the appearance model used (with --target: its cache entry)
 
 
-def dance(song: str | os.PathLike, pose_model: str | os.PathLike, video_model: str | os.PathLike,
-          out: str | os.PathLike, method: str | None = None, seed: int = 0, start: float = 0.0,
-          duration: float | None = None, skeleton_preview: str | os.PathLike | None = None,
-          side_by_side: str | os.PathLike | None = None, device: str = "auto", progress: bool = True) -> DanceResult:
-    """Make ``out`` (mp4): the target person of ``video_model`` dancing to ``song``'s segment.
+def output_size(canvas: tuple[int, int], height: int | None) -> tuple[int, int]:
+    """``(width, height)`` of the output: the canvas, or ``height`` pixels high with the aspect kept; both
+    even, as H.264's 4:2:0 sampling needs."""
+    width, canvas_height = canvas
+    if height is None:
+        height = canvas_height
+    width = round(width * height / canvas_height)
+    return width + width % 2, height + height % 2
+
+
+def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.PathLike | None = None,
+          video_model: str | os.PathLike | None = None, target: str | os.PathLike | None = None,
+          cache: str | os.PathLike | None = None, train_minutes: float = 30.0, preset: str = "auto",
+          method: str | None = None, seed: int = 0, start: float = 0.0, duration: float | None = None,
+          skeleton_preview: str | os.PathLike | None = None, side_by_side: str | os.PathLike | None = None,
+          crop: bool = False, height: int | None = None, precision: str = "auto", device: str = "auto",
+          progress: bool = True) -> DanceResult:
+    """Make ``out`` (mp4): the person of ``video_model`` (or of the video ``target``) dancing to ``song``.
 
     Args:
+        pose_model: a stage-1 run (or folder of runs); None = the pose model shipped with the package.
+        video_model, target: the appearance model's run folder, or a video of the person whose model is
+            looked up in ``cache`` (default under the user's cache folder) and trained or continued until it
+            has trained ``train_minutes`` in all, at ``preset`` (``auto``: 256 px where the hardware makes it
+            affordable, else 128). Exactly one of the two.
         start, duration: the song segment in seconds (duration None = to the end).
-        skeleton_preview: optional mp4 of the dance as a skeleton (target canvas, with the song).
-        side_by_side: optional mp4 of skeleton input | generated person, with the song.
+        crop: write the model's crop around the person instead of the whole scene.
+        height: output height in pixels (aspect kept); default the target video's own.
+        skeleton_preview: optional mp4 of the dance as a skeleton (same size, with the song).
+        side_by_side: optional mp4 of skeleton | generated person (with the song).
+        precision: stage-2 arithmetic, ``auto`` (from the hardware), ``fp32`` or ``bf16``.
     """
-    # The song is decoded once; the same samples become the output's AAC track.
+    if (video_model is None) == (target is None):
+        raise DancesynthError("Give the person to animate either as --target VIDEO or as --video-model RUN, "
+                              "not both and not neither.")
+    # Everything fast to check comes before a training that may take minutes.
     segment = song_segment(load_song(song, SONG_SAMPLE_RATE), SONG_SAMPLE_RATE, start, duration)
     pose_model_loaded = load_pose_model(find_pose_run(pose_model, method), device)
+    if target is not None:
+        name = preset if preset != "auto" else affordable_preset(resolve_device(device))
+        video_model = appearance_model_for(target, train_minutes, name, cache, device, precision)
     poses = generate_dance(pose_model_loaded, segment, SONG_SAMPLE_RATE, seed=seed)
-    appearance = load_appearance_model(video_model, device)
+    appearance = load_appearance_model(video_model, device, precision=precision)
     # The video has the target's frame rate; the dance keeps its timing (resampled in seconds, not frames).
-    poses = target_poses(appearance, resample(poses, appearance.fps))
-    width, height = appearance.config.width, appearance.config.height
+    poses = resample(poses, appearance.fps)
+    if appearance.bone_lengths is not None:
+        poses = retarget_onto(poses, appearance.bone_lengths)
+    poses = target_poses(appearance, poses)
+    compositor = None if crop else scene_compositor(video_model, appearance.framing,
+                                                    output_size(appearance.canvas, height))
+    width, out_height = ((appearance.config.width, appearance.config.height) if compositor is None
+                         else compositor.size)
     outputs = [(Path(out), width)]
     if skeleton_preview is not None:
         outputs.append((Path(skeleton_preview), width))
@@ -100,16 +147,20 @@ def dance(song: str | os.PathLike, pose_model: str | os.PathLike, video_model: s
         outputs.append((Path(side_by_side), 2 * width))
     # One generator pass feeds every output, so the extra videos cost encoding only.
     with contextlib.ExitStack() as stack:
-        writers = [stack.enter_context(VideoWriter(path, poses.fps, w, height, audio=segment,
+        writers = [stack.enter_context(VideoWriter(path, poses.fps, w, out_height, audio=segment,
                                                      audio_sr=SONG_SAMPLE_RATE))
                    for path, w in outputs]
         rendered = render_frames(appearance, poses, normalize=False)
         for keypoints, frame in track(zip(poses.keypoints, rendered), total=len(poses), desc="rendering",
                                      unit="frame", disable=not progress):
-            label = label_map(keypoints, appearance.framing) if len(writers) > 1 else None
+            if compositor is not None:
+                frame = compositor.frame(frame, keypoints)
             writers[0].write(frame)
-            if skeleton_preview is not None:
-                writers[1].write(label)
-            if side_by_side is not None:
-                writers[-1].write(np.concatenate([label, frame], axis=1))
-    return DanceResult(poses, [path for path, _ in outputs])
+            if len(writers) > 1:
+                label = (label_map(keypoints, appearance.framing) if compositor is None
+                         else compositor.skeleton(keypoints))
+                if skeleton_preview is not None:
+                    writers[1].write(label)
+                if side_by_side is not None:
+                    writers[-1].write(np.concatenate([label, frame], axis=1))
+    return DanceResult(poses, [path for path, _ in outputs], Path(video_model))

@@ -96,9 +96,9 @@ def main() -> None:
             frames = max(4, args.frames // 4) if name == "paper" else args.frames
             poses = dancing_poses(frames, size)
             framing = whole_canvas(size, size, size, size)
-            plain = AppearanceModel(generator, config, framing, None, 15.0, device)
+            plain = AppearanceModel(generator, config, framing, None, 15.0, device, (size, size))
             fast = AppearanceModel(optimize_generator(generator, 6, size, size, device), config, framing, None,
-                                   15.0, device)
+                                   15.0, device, (size, size))
             plain_runs, fast_runs = interleaved_fps([plain, fast], poses, args.rounds)
             plain_fps, fast_fps = float(np.median(plain_runs)), float(np.median(fast_runs))
             diff = max_step_diff(plain, fast, poses)

@@ -16,6 +16,7 @@ frame after frame as `dancesynth render` does, and prints:
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -54,6 +55,58 @@ def without_small_toes(seq: PoseSequence) -> PoseSequence:
     return PoseSequence(kp, seq.fps, seq.width, seq.height)
 
 
+@dataclass
+class HeldOut:
+    """What :func:`held_out_quality` measured and rendered (model-resolution frames)."""
+
+    frames: range  # held-out frame indices of the target video
+    commanded: PoseSequence  # their poses (canvas pixels)
+    generated: list[np.ndarray]
+    reals: list[np.ndarray]
+    ssim: float
+    psnr: float
+    pck: list[tuple[str, float]]
+
+
+def held_out_quality(run_dir: Path, frames: int = 0, device: str = "auto",
+                     ground_truth: Path | None = None) -> HeldOut:
+    """Render the run's held-out frames (the first ``frames``, 0 = all) and score them (see the module doc)."""
+    meta = load_meta(run_dir, KIND)
+    config = config_from_dict(Pix2PixHDConfig, meta["config"])
+    model = load_appearance_model(run_dir, device)
+    poses = PoseSequence.load(run_dir / POSES_FILE)
+    real = np.load(run_dir / frames_file(model.framing), mmap_mode="r")
+    _, held_out = split_ranges(len(poses), config.val_fraction)
+    stop = min(held_out.start + frames, held_out.stop) if frames else held_out.stop
+    commanded = poses.slice_frames(held_out.start, stop)
+    generated = list(track(render_frames(model, commanded, normalize=False), total=len(commanded), desc="render"))
+    reals = [np.asarray(real[t]) for t in range(held_out.start, stop)]
+    target = framed(commanded, model.framing)
+    from_generated, from_real = extracted(generated, poses.fps), extracted(reals, poses.fps)
+    rows = [("generated vs commanded", pck(from_generated, target)),
+            ("real frames vs commanded (ceiling)", pck(from_real, target))]
+    if ground_truth:
+        truth = PoseSequence.load(ground_truth).slice_frames(held_out.start, stop)
+        truth = without_small_toes(framed(truth, model.framing))
+        rows += [("generated vs true joints", pck(from_generated, truth)),
+                 ("real frames vs true joints", pck(from_real, truth))]
+    return HeldOut(range(held_out.start, stop), commanded, generated, reals,
+                   float(np.mean([ssim(g, r) for g, r in zip(generated, reals)])),
+                   float(np.mean([psnr(g, r) for g, r in zip(generated, reals)])), rows)
+
+
+def print_quality(run_dir: Path, result: HeldOut) -> None:
+    meta = load_meta(run_dir, KIND)
+    config = config_from_dict(Pix2PixHDConfig, meta["config"])
+    print(f"run {run_dir}: step {meta['step']}, epoch {meta['epoch']}, {config.width}x{config.height}, "
+          f"held-out frames {result.frames.start}-{result.frames.stop - 1}")
+    print(f"{'metric':<44}{'value':>8}")
+    print(f"{'SSIM (mean)':<44}{result.ssim:>8.3f}")
+    print(f"{'PSNR dB (mean)':<44}{result.psnr:>8.2f}")
+    for name, value in result.pck:
+        print(f"{'PCK@0.1 ' + name:<44}{value:>8.3f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("run_dir", type=Path)
@@ -65,38 +118,13 @@ def main() -> None:
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
-    meta = load_meta(args.run_dir, KIND)
-    config = config_from_dict(Pix2PixHDConfig, meta["config"])
-    model = load_appearance_model(args.run_dir, args.device)
-    poses = PoseSequence.load(args.run_dir / POSES_FILE)
-    real = np.load(args.run_dir / frames_file(model.framing), mmap_mode="r")
-    _, held_out = split_ranges(len(poses), config.val_fraction)
-    stop = held_out.start + args.frames if args.frames else held_out.stop
-    commanded = poses.slice_frames(held_out.start, min(stop, held_out.stop))
-    generated = list(track(render_frames(model, commanded, normalize=False), total=len(commanded), desc="render"))
-    reals = [np.asarray(real[t]) for t in range(held_out.start, held_out.start + len(commanded))]
-    s = [ssim(g, r) for g, r in zip(generated, reals)]
-    p = [psnr(g, r) for g, r in zip(generated, reals)]
-    target = framed(commanded, model.framing)
-    from_generated, from_real = extracted(generated, poses.fps), extracted(reals, poses.fps)
-    rows = [("generated vs commanded", pck(from_generated, target)),
-            ("real frames vs commanded (ceiling)", pck(from_real, target))]
-    if args.ground_truth:
-        truth = PoseSequence.load(args.ground_truth).slice_frames(held_out.start, held_out.start + len(commanded))
-        truth = without_small_toes(framed(truth, model.framing))
-        rows += [("generated vs true joints", pck(from_generated, truth)),
-                 ("real frames vs true joints", pck(from_real, truth))]
+    result = held_out_quality(args.run_dir, args.frames, args.device, args.ground_truth)
     if args.save_video:
-        with VideoWriter(args.save_video, poses.fps, 2 * config.width, config.height) as writer:
-            for g, r in zip(generated, reals):
+        height, width = result.generated[0].shape[:2]
+        with VideoWriter(args.save_video, result.commanded.fps, 2 * width, height) as writer:
+            for g, r in zip(result.generated, result.reals):
                 writer.write(np.concatenate([r, g], axis=1))
-    print(f"run {args.run_dir}: step {meta['step']}, epoch {meta['epoch']}, {config.width}x{config.height}, "
-          f"held-out frames {held_out.start}-{held_out.start + len(commanded) - 1}")
-    print(f"{'metric':<44}{'value':>8}")
-    print(f"{'SSIM (mean)':<44}{np.mean(s):>8.3f}")
-    print(f"{'PSNR dB (mean)':<44}{np.mean(p):>8.2f}")
-    for name, value in rows:
-        print(f"{'PCK@0.1 ' + name:<44}{value:>8.3f}")
+    print_quality(args.run_dir, result)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,7 @@
 """The public Python API: one function per `dancesynth` command, with the command's defaults.
 
 >>> import dancesynth
->>> dancesynth.dance("song.mp3", pose_model="runs/pose", video_model="runs/me", out="me_dancing.mp4")
+>>> dancesynth.dance("song.mp3", target="me.mp4", out="me_dancing.mp4")
 
 Paths may be ``str`` or ``os.PathLike``. Bad input raises :class:`dancesynth.core.errors.DancesynthError`
 with a one-sentence message. Progress and messages go to :mod:`logging` (configure it, e.g.
@@ -24,35 +24,51 @@ if TYPE_CHECKING:
 PathLike = str | os.PathLike
 
 
-def dance(song: PathLike, *, pose_model: PathLike, video_model: PathLike, out: PathLike, method: str | None = None,
-          seed: int = 0, start: float = 0.0, duration: float | None = None,
+def dance(song: PathLike, *, out: PathLike, target: PathLike | None = None, video_model: PathLike | None = None,
+          pose_model: PathLike | None = None, cache: PathLike | None = None, train_minutes: float = 30.0,
+          preset: str = "auto", method: str | None = None, seed: int = 0, start: float = 0.0,
+          duration: float | None = None, height: int | None = None, crop: bool = False,
           skeleton_preview: PathLike | None = None, side_by_side: PathLike | None = None,
-          device: str = "auto") -> DanceResult:
-    """Make ``out`` (mp4): the person of ``video_model`` dancing to ``song``, with the song as its sound.
+          precision: str = "auto", device: str = "auto") -> DanceResult:
+    """Make ``out`` (mp4): the person of ``target`` (a video) or ``video_model`` dancing to ``song``, in their
+    own scene at its resolution, with the song as its sound.
 
     Args:
         song: any audio FFmpeg reads (wav, mp3, ogg, m4a, flac, or a video's soundtrack).
-        pose_model: a stage-1 run folder (:func:`train_pose`), or a folder of runs named by method.
-        video_model: a stage-2 run folder (:func:`train_video`).
+        target: a video of the person; their appearance model is taken from ``cache`` (default
+            ``~/.cache/dancesynth/appearance``) or trained now until it has trained ``train_minutes`` in all
+            (a later call with more minutes continues it), at ``preset`` (``auto``, ``small`` = 128 px or
+            ``medium`` = 256 px).
+        video_model: instead of ``target``, a stage-2 run folder (:func:`train_video`).
+        pose_model: a stage-1 run folder (:func:`train_pose`) or a folder of runs named by method; None = the
+            pose model shipped with dancesynth.
         method: which run to use when ``pose_model`` holds several (default ``dance_revolution``).
         seed: another seed gives another dance.
         start, duration: the song segment in seconds (``duration`` None = to the end of the song).
-        skeleton_preview: also write the skeleton as an mp4.
+        height: output height in pixels, aspect kept (default: the target video's).
+        crop: write the model's crop around the person instead of the whole scene.
+        skeleton_preview: also write the skeleton as an mp4 (same size).
         side_by_side: also write skeleton | generated person as an mp4.
+        precision: appearance-model arithmetic: ``auto`` (bf16 on CPUs with AMX/AVX-512-BF16 and GPUs),
+            ``fp32`` or ``bf16``.
         device: ``auto`` (GPU when available), ``cpu`` or ``cuda``.
 
     Returns:
-        the dance at the video's fps on the target's canvas (``.poses``) and the files written (``.written``).
+        the dance at the video's fps on the target's canvas (``.poses``), the files written (``.written``) and
+        the appearance model used (``.video_model``).
     """
     from apps.pipeline import dance as make_dance
 
-    return make_dance(song, pose_model, video_model, out, method=method, seed=seed, start=start, duration=duration,
-                      skeleton_preview=skeleton_preview, side_by_side=side_by_side, device=device)
+    return make_dance(song, out, pose_model=pose_model, video_model=video_model, target=target, cache=cache,
+                      train_minutes=train_minutes, preset=preset, method=method, seed=seed, start=start,
+                      duration=duration, skeleton_preview=skeleton_preview, side_by_side=side_by_side, crop=crop,
+                      height=height, precision=precision, device=device)
 
 
-def generate(song: PathLike, *, model: PathLike, out: PathLike | None = None, seed: int = 0,
+def generate(song: PathLike, *, model: PathLike | None = None, out: PathLike | None = None, seed: int = 0,
              preview: PathLike | None = None, precision: str = "auto", device: str = "auto") -> PoseSequence:
-    """A dance for ``song`` (any length) from the stage-1 run folder ``model``.
+    """A dance for ``song`` (any length) from the stage-1 run folder ``model`` (None = the pose model shipped
+    with dancesynth).
 
     Args:
         out: also save the dance there (.npz: keypoints ``[T, 25, 3]`` in pixels of the training canvas,
@@ -66,8 +82,9 @@ def generate(song: PathLike, *, model: PathLike, out: PathLike | None = None, se
     from dancesynth.core.fileio import atomic_path
     from dancesynth.core.media import SONG_SAMPLE_RATE, load_song
     from stage1_pose.generate import generate_dance, load_pose_model
+    from stage1_pose.pretrained import DEFAULT_POSE_MODEL
 
-    loaded = load_pose_model(model, device, precision)
+    loaded = load_pose_model(DEFAULT_POSE_MODEL if model is None else model, device, precision)
     samples = load_song(song, SONG_SAMPLE_RATE)
     poses = generate_dance(loaded, samples, SONG_SAMPLE_RATE, seed=seed)
     # Both outputs are renamed into place only once both are complete, so a failure leaves neither.
@@ -81,7 +98,7 @@ def generate(song: PathLike, *, model: PathLike, out: PathLike | None = None, se
 
 
 def render(poses: PoseSequence | PathLike, *, model: PathLike, out: PathLike, audio: PathLike | None = None,
-           normalize: bool = True, optimize: bool = True, device: str = "auto") -> Path:
+           normalize: bool = True, optimize: bool = True, device: str = "auto", precision: str = "auto") -> Path:
     """Render ``poses`` (a PoseSequence or a .npz pose file) as an mp4 of the person of the stage-2 run ``model``.
 
     Args:
@@ -90,6 +107,8 @@ def render(poses: PoseSequence | PathLike, *, model: PathLike, out: PathLike, au
             are already on the target's canvas.
         optimize: the fast inference path (OpenVINO on CPU); False for plain PyTorch.
         device: ``auto``, ``cpu`` or ``cuda``.
+        precision: ``auto`` (bf16 on CPUs with AMX/AVX-512-BF16 and on GPUs, fp16 on GPUs without bf16, else
+            fp32), ``fp32``, ``bf16`` or ``fp16`` (CUDA).
 
     Returns:
         the written video's path; frames at the poses' fps and the model's resolution.
@@ -100,7 +119,7 @@ def render(poses: PoseSequence | PathLike, *, model: PathLike, out: PathLike, au
 
     if not isinstance(poses, PoseSequence):
         poses = PoseSequence.load(poses)
-    appearance = load_appearance_model(model, device, optimize=optimize)
+    appearance = load_appearance_model(model, device, optimize=optimize, precision=precision)
     # The soundtrack is decoded at the rate it is encoded at, so it is not resampled twice.
     samples = decode_audio(audio, AAC_RATE) if audio is not None else None
     return render_video(poses, appearance, out, audio=samples, audio_sr=AAC_RATE if audio is not None else None,
@@ -181,7 +200,8 @@ def train_pose(method: str, *, data: PathLike, out: PathLike, preset: str = "sma
 def train_video(video: PathLike, *, out: PathLike, preset: str = "small", overrides: dict[str, Any] | None = None,
                 minutes: float | None = None, epochs: int | None = None, resume: bool = False,
                 poses: PathLike | None = None, vgg_weights: PathLike | None = None, checkpoint_every: int = 200,
-                sample_every: int = 200, seed: int = 0, device: str = "auto") -> dict[str, Any]:
+                sample_every: int = 200, seed: int = 0, device: str = "auto",
+                precision: str = "auto") -> dict[str, Any]:
     """Train the appearance model (pix2pixHD + temporal smoothing) of the person in ``video``.
 
     Args:
@@ -193,6 +213,8 @@ def train_video(video: PathLike, *, out: PathLike, preset: str = "small", overri
         poses: a pose file of ``video`` to use instead of extracting poses.
         vgg_weights: local torchvision vgg19 weights (.pth/.safetensors) for the perceptual loss (off without).
         checkpoint_every, sample_every: steps between checkpoints and between sample grids.
+        precision: what the forward passes compute in (weights stay float32): ``auto`` (bf16 on CPUs with
+            AMX/AVX-512-BF16 and on GPUs, fp16 on GPUs without bf16, else fp32), ``fp32``, ``bf16`` or ``fp16``.
 
     Returns:
         the last checkpoint's metadata (epoch, step, validation SSIM/PSNR, ...).
@@ -203,7 +225,7 @@ def train_video(video: PathLike, *, out: PathLike, preset: str = "small", overri
     options = TrainOptions(minutes=minutes, epochs=epochs, checkpoint_every=checkpoint_every,
                            sample_every=sample_every, seed=seed)
     return train_appearance(video, out, preset, options, resume=resume, poses=poses, vgg_weights=vgg_weights,
-                            device=device, overrides=overrides)
+                            device=device, overrides=overrides, precision=precision)
 
 
 def _given(**settings: Any) -> dict[str, Any]:

@@ -15,7 +15,7 @@ import functools
 import hashlib
 import json
 import os
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -88,6 +88,16 @@ def _rebuilding(cache: Path, key: str) -> Iterator[None]:
     yield
     with atomic_path(_key_file(cache)) as tmp:
         tmp.write_text(key)
+
+
+def cache_file(cache: Path, video: Path, write: Callable[[Path], None], **options) -> None:
+    """Make ``cache`` with ``write(temporary path)`` unless it is complete and was made from ``video`` and
+    ``options`` (its key file says so); the file appears atomically, its key file after it."""
+    key = _cache_key(video, **options)
+    if _is_cached(cache, key):
+        return
+    with _rebuilding(cache, key), atomic_path(cache) as tmp:
+        write(tmp)
 
 
 def load_or_extract_poses(video: Path, run_dir: Path, poses: Path | None) -> PoseSequence:

@@ -22,11 +22,11 @@ from torch import nn
 
 from dancesynth.core.checkpoint import POINTER, load_checkpoint, run_file_contents
 from dancesynth.core.config import config_from_dict
-from dancesynth.core.device import resolve_device
+from dancesynth.core.device import resolve_device, resolve_precision
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import VideoWriter
 from dancesynth.core.progress import track
-from dancesynth.core.skeleton import PoseSequence
+from dancesynth.core.skeleton import BODY25_LIMBS, PoseSequence
 from stage2_video.data import to_image, to_tensor
 from stage2_video.framing import Framing, label_map
 from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig
@@ -46,16 +46,33 @@ class _ChannelsLast(nn.Module):
         return self.inner(x.contiguous(memory_format=torch.channels_last))
 
 
-class OpenVINOGenerator:
-    """The generator compiled by OpenVINO's CPU plugin for one input size, float32 throughout.
+class _Autocast(nn.Module):
+    """Runs ``inner`` under autocast to ``dtype`` (bfloat16 or float16) and returns float32."""
 
-    Its residual blocks are first rewritten with Winograd convolutions (:mod:`stage2_video.winograd`, a quarter
-    of the multiplies); OpenVINO then fuses the other convolutions with their instance norm and activation and
-    keeps activations in blocked layouts between layers, which PyTorch's eager and TorchScript paths do not.
-    The output equals the plain forward up to float rounding (``benchmarks/bench_render.py`` measures both).
+    def __init__(self, inner: nn.Module, dtype: torch.dtype) -> None:
+        super().__init__()
+        self.inner, self.dtype = inner, dtype
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        with torch.autocast(x.device.type, dtype=self.dtype):
+            return self.inner(x).float()
+
+
+class OpenVINOGenerator:
+    """The generator compiled by OpenVINO's CPU plugin for one input size, computing in ``precision``.
+
+    float32: the residual blocks are first rewritten with Winograd convolutions (:mod:`stage2_video.winograd`, a
+    quarter of the multiplies) and the output equals the plain forward up to float rounding
+    (``benchmarks/bench_render.py``). bfloat16 (OpenVINO's ``INFERENCE_PRECISION_HINT``, for CPUs with AMX or
+    AVX-512-BF16): direct convolutions, which were faster in bf16 (58.6 vs 38.4 frames/s at 256 px on a Xeon with
+    AMX) and far closer to float32 than Winograd's transforms rounded to bf16 (``benchmarks/bench_precision.py``);
+    ``winograd`` overrides that choice. Either way OpenVINO fuses the other convolutions with their instance norm
+    and activation and keeps activations in blocked layouts between layers, which PyTorch's eager and
+    TorchScript paths do not.
     """
 
-    def __init__(self, generator: nn.Module, in_channels: int, width: int, height: int) -> None:
+    def __init__(self, generator: nn.Module, in_channels: int, width: int, height: int,
+                 precision: torch.dtype = torch.float32, winograd: bool | None = None) -> None:
         import openvino
 
         shape = (1, in_channels, height, width)
@@ -65,11 +82,12 @@ class OpenVINOGenerator:
             warnings.simplefilter("ignore")
             # Traced here without autograd or the tracer's re-run check: left to the converter, tracing held
             # about 400 MB more at its peak for the small preset.
-            traced = torch.jit.trace(winograd_generator(generator, in_channels, width, height), example,
-                                     check_trace=False)
+            if precision == torch.float32 if winograd is None else winograd:
+                generator = winograd_generator(generator, in_channels, width, height)
+            traced = torch.jit.trace(generator, example, check_trace=False)
             model = openvino.convert_model(traced, example_input=example, input=[shape])
         compiled = openvino.Core().compile_model(model, "CPU", {
-            "INFERENCE_PRECISION_HINT": "f32", "PERFORMANCE_HINT": "LATENCY",
+            "INFERENCE_PRECISION_HINT": "bf16" if precision == torch.bfloat16 else "f32", "PERFORMANCE_HINT": "LATENCY",
             "INFERENCE_NUM_THREADS": torch.get_num_threads()})
         self._request = compiled.create_infer_request()
 
@@ -79,17 +97,20 @@ class OpenVINOGenerator:
         return torch.from_numpy(self._request.infer([x.numpy()])[0].copy())
 
 
-def optimize_generator(generator: nn.Module, in_channels: int, width: int, height: int,
-                       device: torch.device) -> Callable[[torch.Tensor], torch.Tensor]:
-    """An inference-only copy of ``generator`` for ``[1, in_channels, height, width]`` inputs.
+def optimize_generator(generator: nn.Module, in_channels: int, width: int, height: int, device: torch.device,
+                       precision: torch.dtype = torch.float32) -> Callable[[torch.Tensor], torch.Tensor]:
+    """An inference-only copy of ``generator`` for ``[1, in_channels, height, width]`` inputs, computing in
+    ``precision`` (float32 input and output).
 
     On CPU the network compiled by OpenVINO (:class:`OpenVINOGenerator`); on a GPU a channels-last copy traced
-    and frozen by TorchScript. Float32 throughout, so the output equals the plain forward up to rounding
-    (``benchmarks/bench_render.py`` measures the difference and the speed-up).
+    (under autocast unless ``precision`` is float32) and frozen by TorchScript. In float32 the output equals the
+    plain forward up to rounding (``benchmarks/bench_render.py`` measures the difference and the speed-up).
     """
     if device.type == "cpu":
-        return OpenVINOGenerator(generator, in_channels, width, height)
+        return OpenVINOGenerator(generator, in_channels, width, height, precision)
     wrapped = _ChannelsLast(copy.deepcopy(generator).eval().to(device, memory_format=torch.channels_last))
+    if precision != torch.float32:
+        wrapped = _Autocast(wrapped, precision)
     example = torch.zeros(1, in_channels, height, width, device=device)
     with torch.no_grad(), warnings.catch_warnings():
         # The tracer flags instance norm's shape checks (fixed for a fixed input size) and TorchScript is
@@ -108,6 +129,9 @@ class AppearanceModel:
     target_stats: BodyStats | None
     fps: float
     device: torch.device
+    canvas: tuple[int, int]  # (width, height) in pixels of the target video, upright: what the scene output has
+    # [B] the target's median bone lengths (pixels of its canvas) for retargeting; None for runs saved before them
+    bone_lengths: np.ndarray | None = None
 
     @torch.inference_mode()
     def step(self, label: np.ndarray, previous: torch.Tensor | None) -> torch.Tensor:
@@ -118,10 +142,14 @@ class AppearanceModel:
         return self.generator(x)
 
 
-def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", optimize: bool = True) -> AppearanceModel:
-    """Load ``RUN_DIR/latest`` (kind "stage2"); ``optimize`` compiles the generator for fast rendering."""
-    state_dict, meta = load_checkpoint(Path(run_dir), KIND)
+def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", optimize: bool = True,
+                          precision: str = "auto") -> AppearanceModel:
+    """Load ``RUN_DIR/latest`` (kind "stage2"); ``optimize`` compiles the generator for fast rendering;
+    ``precision`` (``auto``, ``fp32``, ``bf16``, ``fp16`` on CUDA) is what it computes in
+    (:func:`dancesynth.core.device.resolve_precision`)."""
     dev = resolve_device(device)
+    dtype = resolve_precision(precision, dev)
+    state_dict, meta = load_checkpoint(Path(run_dir), KIND)
     with run_file_contents(Path(run_dir) / POINTER):
         config = config_from_dict(Pix2PixHDConfig, meta["config"])
         model = Pix2PixHD(config)
@@ -130,11 +158,20 @@ def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", opti
         framing, fps = Framing.from_dict(meta["framing"]), float(meta["fps"])
         if not 0 < fps < math.inf:
             raise ValueError(f"fps {fps} is not a positive frame rate")
+        canvas_width, canvas_height = (int(v) for v in meta["canvas"])
+        if min(canvas_width, canvas_height) <= 0:
+            raise ValueError(f"canvas {meta['canvas']} is not a frame size")
+        lengths = np.asarray(meta["bone_lengths"], np.float64) if meta.get("bone_lengths") is not None else None
+        if lengths is not None and lengths.shape != (len(BODY25_LIMBS),):
+            raise ValueError(f"bone_lengths has shape {lengths.shape}, not [{len(BODY25_LIMBS)}]")
     generator = model.generator.eval().to(dev)
     if optimize:
         in_channels = 6 if config.temporal else 3
-        generator = optimize_generator(generator, in_channels, config.width, config.height, dev)
-    return AppearanceModel(generator, config, framing, stats, fps, dev)
+        generator = optimize_generator(generator, in_channels, config.width, config.height, dev, dtype)
+    elif dtype != torch.float32:
+        generator = _Autocast(generator, dtype)
+    return AppearanceModel(generator, config, framing, stats, fps, dev, (canvas_width, canvas_height),
+                           bone_lengths=lengths)
 
 
 def target_poses(model: AppearanceModel, poses: PoseSequence, normalize: bool = True) -> PoseSequence:

@@ -30,6 +30,7 @@ from typing import Protocol
 
 import numpy as np
 
+from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import JOINT_INDEX, NECK, ROOT
 
 _LSHOULDER, _RSHOULDER = JOINT_INDEX["LShoulder"], JOINT_INDEX["RShoulder"]
@@ -146,6 +147,8 @@ class TrackerConfig:
         lost_drift: extra neck displacement allowed per missing frame, in torso lengths.
         reacquire_after: consecutive missing frames before the whole frame is searched again.
         max_people: most people looked for by a whole-frame search.
+        min_lead: when the target is first chosen, its :func:`target_score` must exceed every other person's by
+            this factor; otherwise whom to follow is a guess and extraction stops with an error.
     """
 
     crop_margin: float = 1.6
@@ -154,6 +157,7 @@ class TrackerConfig:
     lost_drift: float = 0.2
     reacquire_after: int = 5
     max_people: int = 4
+    min_lead: float = 1.25
 
 
 @dataclass
@@ -246,6 +250,7 @@ class PersonTracker:
         people = find_people(frame, self.estimator, self.config.max_people)
         if self._target is None:
             pose = choose_target(people, self.width, self.height)
+            self._check_lead(people)
         else:
             last = self._target.neck
             same = [p for p in people if self._is_same_person(p)]
@@ -255,6 +260,12 @@ class PersonTracker:
             if self._target is not None:
                 self.stats.reacquired += 1
         return pose
+
+    def _check_lead(self, people: list[np.ndarray]) -> None:
+        scores = sorted((target_score(p, self.width, self.height) for p in people), reverse=True)
+        if len(scores) > 1 and scores[0] < self.config.min_lead * scores[1]:
+            raise DancesynthError(f"The video shows {len(scores)} people of about the same size near the centre, "
+                                  "so it is unclear whom to learn; crop or trim it so that one person stands out.")
 
     def _accept(self, pose: np.ndarray) -> None:
         neck, size = torso(pose)

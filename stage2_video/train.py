@@ -4,6 +4,7 @@ Run folder layout (``RUN_DIR``, a :class:`dancesynth.core.runs.RunFolder`):
   latest.json + ckpt-<step>-<id>/                         checkpoint (kind "stage2"), resumable exactly
   poses.npz                                               the target's poses (extracted once, or given)
   frames_<W>x<H>.npy                                      framed training frames (uint8 memory map)
+  background.png                                          the target's scene without the person (stage2_video.composite)
   losses.csv, validation.csv, losses.png                  per-step losses, held-out SSIM/PSNR, their plot
   samples/step_XXXXXXX.png                                held-out frames: real | skeleton | generated
 
@@ -28,11 +29,12 @@ from torch.utils.data import DistributedSampler
 
 from dancesynth.core.checkpoint import POINTER, run_file_contents
 from dancesynth.core.config import config_from_dict, config_to_dict
-from dancesynth.core.device import resolve_device
+from dancesynth.core.device import precision_name, resolve_device, resolve_precision
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
 from dancesynth.core.progress import track
 from dancesynth.core.runs import RunFolder
+from stage2_video.composite import cache_plate
 from stage2_video.data import (
     FramePairs,
     TargetVideo,
@@ -46,6 +48,7 @@ from stage2_video.framing import Framing, person_framing
 from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig, feature_matching_loss, lsgan_loss, preset
 from stage2_video.normalize import body_stats
 from stage2_video.quality import psnr, ssim
+from stage2_video.retarget import target_bone_lengths
 from stage2_video.vgg import VGGLoss, build_vgg_loss
 
 KIND = "stage2"
@@ -70,8 +73,13 @@ class VideoTrainer:
     """Holds the model, optimizers, data and position of one run; :meth:`fit` trains until a budget is spent."""
 
     def __init__(self, config: Pix2PixHDConfig, target: TargetVideo, run: RunFolder, device: torch.device,
-                 vgg: VGGLoss | None, options: TrainOptions, source_video: str) -> None:
+                 vgg: VGGLoss | None, options: TrainOptions, source_video: str,
+                 precision: torch.dtype = torch.float32) -> None:
         self.config, self.target, self.folder, self.device = config, target, run, device
+        # Forward passes and losses run under autocast to ``precision``; the weights stay float32.
+        self.precision = precision
+        # fp16 gradients underflow without loss scaling; bf16 has float32's exponent range and needs none.
+        self.scaler = torch.amp.GradScaler(device.type, enabled=precision == torch.float16)
         self.options, self.source_video = options, source_video
         self.vgg = vgg.to(device) if vgg is not None else None
         self.run_dir, self.rank, self.world = run.path, run.rank, run.world
@@ -86,6 +94,7 @@ class VideoTrainer:
         self.opt_g = torch.optim.Adam(self.model.generator.parameters(), lr=config.lr, betas=betas)
         self.opt_d = torch.optim.Adam(d_params, lr=config.lr, betas=betas)
         self.epoch, self.position, self.step = 0, 0, 0
+        self.trained_seconds = 0.0  # wall-clock seconds of training over every invocation of this run
         self.total_epochs = options.epochs or (config.epochs_constant + config.epochs_decay)
 
     # --- schedule -------------------------------------------------------------------------------------------
@@ -114,34 +123,37 @@ class VideoTrainer:
         """One generator and one discriminator update on a batch of consecutive pairs."""
         cfg, model = self.config, self.model
         label_p, real_p, label_c, real_c = (x.to(self.device) for x in batch)
-        fake_p = model.generate(label_p)
-        fake_c = model.generate(label_c, fake_p)
-        labels, reals, fakes = torch.cat([label_p, label_c]), torch.cat([real_p, real_c]), torch.cat([fake_p, fake_c])
-        pairs = [(model.discriminator, torch.cat([labels, reals], 1), torch.cat([labels, fakes], 1))]
-        if model.temporal_discriminator is not None:
-            pairs.append((model.temporal_discriminator, torch.cat([label_p, label_c, real_p, real_c], 1),
-                          torch.cat([label_p, label_c, fake_p, fake_c], 1)))
-        loss_d = fakes.new_zeros(())
-        g_gan = fakes.new_zeros(())
-        g_feat = fakes.new_zeros(())
-        for disc, real_in, fake_in in pairs:
-            pred_real = disc(real_in)
-            pred_fake = disc(fake_in)
-            g_gan = g_gan + lsgan_loss(pred_fake, True)
-            g_feat = g_feat + feature_matching_loss(pred_fake, pred_real, cfg.n_layers_d, cfg.lambda_feat)
-            loss_d = loss_d + 0.5 * (lsgan_loss(pred_real, True) + lsgan_loss(disc(fake_in.detach()), False))
-        g_vgg = self.vgg(fakes, reals) * cfg.lambda_vgg if self.vgg is not None else fakes.new_zeros(())
-        g_l1 = F.l1_loss(fakes, reals) * cfg.lambda_l1
-        loss_g = g_gan + g_feat + g_vgg + g_l1
+        with torch.autocast(self.device.type, dtype=self.precision, enabled=self.precision != torch.float32):
+            fake_p = model.generate(label_p)
+            fake_c = model.generate(label_c, fake_p)
+            labels, reals = torch.cat([label_p, label_c]), torch.cat([real_p, real_c])
+            fakes = torch.cat([fake_p, fake_c])
+            pairs = [(model.discriminator, torch.cat([labels, reals], 1), torch.cat([labels, fakes], 1))]
+            if model.temporal_discriminator is not None:
+                pairs.append((model.temporal_discriminator, torch.cat([label_p, label_c, real_p, real_c], 1),
+                              torch.cat([label_p, label_c, fake_p, fake_c], 1)))
+            loss_d = fakes.new_zeros((), dtype=torch.float32)
+            g_gan = fakes.new_zeros((), dtype=torch.float32)
+            g_feat = fakes.new_zeros((), dtype=torch.float32)
+            for disc, real_in, fake_in in pairs:
+                pred_real = disc(real_in)
+                pred_fake = disc(fake_in)
+                g_gan = g_gan + lsgan_loss(pred_fake, True)
+                g_feat = g_feat + feature_matching_loss(pred_fake, pred_real, cfg.n_layers_d, cfg.lambda_feat)
+                loss_d = loss_d + 0.5 * (lsgan_loss(pred_real, True) + lsgan_loss(disc(fake_in.detach()), False))
+            g_vgg = self.vgg(fakes, reals) * cfg.lambda_vgg if self.vgg is not None else g_gan.new_zeros(())
+            g_l1 = F.l1_loss(fakes.float(), reals) * cfg.lambda_l1
+            loss_g = g_gan + g_feat + g_vgg + g_l1
         self.opt_g.zero_grad(set_to_none=True)
-        loss_g.backward()
+        self.scaler.scale(loss_g).backward()
         self._sync(self.opt_g)
-        self.opt_g.step()
+        self.scaler.step(self.opt_g)
         # The generator's backward also reached the discriminators; clear that before their own update.
         self.opt_d.zero_grad(set_to_none=True)
-        loss_d.backward()
+        self.scaler.scale(loss_d).backward()
         self._sync(self.opt_d)
-        self.opt_d.step()
+        self.scaler.step(self.opt_d)
+        self.scaler.update()
         return {"d": loss_d.item(), "g_gan": g_gan.item(), "g_feat": g_feat.item(), "g_vgg": g_vgg.item(),
                 "g_l1": g_l1.item()}
 
@@ -151,7 +163,13 @@ class VideoTrainer:
         deadline = time.monotonic() + 60 * self.options.minutes if self.options.minutes else math.inf
         last_step = self.step + self.options.max_steps if self.options.max_steps else math.inf
         start = time.monotonic()
-        bar = track(total=self.total_epochs, initial=self.epoch, desc="epochs", unit="epoch", disable=self.rank != 0)
+        trained_before = self.trained_seconds
+        # Under a time budget progress counts seconds, so its "left" is the budget's; otherwise epochs.
+        if self.options.minutes:
+            bar = track(total=round(60 * self.options.minutes), desc="training", unit="s", disable=self.rank != 0)
+        else:
+            bar = track(total=self.total_epochs, initial=self.epoch, desc="epochs", unit="epoch",
+                        disable=self.rank != 0)
         out_of_time = False
         while self.epoch < self.total_epochs and not out_of_time:
             for g in (*self.opt_g.param_groups, *self.opt_d.param_groups):
@@ -163,7 +181,11 @@ class VideoTrainer:
                 losses = self.train_step(batch)
                 self.position += 1
                 self.step += 1
-                self._log(losses, time.monotonic() - start)
+                elapsed = time.monotonic() - start
+                self.trained_seconds = trained_before + elapsed
+                self._log(losses, elapsed)
+                if self.options.minutes:
+                    bar.update(min(bar.total, int(elapsed)) - bar.n)
                 bar.set_postfix(step=self.step, d=f"{losses['d']:.3f}", l1=f"{losses['g_l1']:.3f}")
                 if self.step % self.options.sample_every == 0:
                     self.write_samples()
@@ -174,7 +196,8 @@ class VideoTrainer:
                     break
             if not out_of_time:
                 self.epoch, self.position = self.epoch + 1, 0
-                bar.update(1)
+                if not self.options.minutes:
+                    bar.update(1)
         bar.close()
         self.write_samples()
         meta = self.checkpoint()
@@ -231,9 +254,11 @@ class VideoTrainer:
             stats = None  # the target never shows head and ankles together: render with --no-normalize only
         return {"kind": KIND, "method": METHOD, "config": config_to_dict(self.config), "epoch": self.epoch,
                 "position": self.position, "step": self.step, "total_epochs": self.total_epochs,
+                "trained_seconds": round(self.trained_seconds, 1),
                 "framing": self.target.framing.to_dict(), "target_stats": stats, "fps": poses.fps,
                 "canvas": [poses.width, poses.height], "video": self.source_video, "vgg": self.vgg is not None,
-                "seed": self.options.seed}
+                "seed": self.options.seed, "precision": precision_name(self.precision),
+                "bone_lengths": target_bone_lengths(poses).tolist()}
 
     def optimizers(self) -> dict[str, torch.optim.Optimizer]:
         return {"g": self.opt_g, "d": self.opt_d}
@@ -245,27 +270,33 @@ class VideoTrainer:
         if self.folder.writer:
             meta["validation"] = self.validate()
             self.folder.log("validation", {"step": self.step, "epoch": self.epoch, **meta["validation"]})
-        self.folder.save(self.model, meta, self.optimizers())
+        self.folder.save(self.model, meta, self.optimizers(), {"scaler": self.scaler.state_dict()})
         self.folder.plot("losses.png")
         return meta
 
     def restore(self) -> None:
         """Continue from the run folder's latest checkpoint exactly where it stopped."""
-        meta, _ = self.folder.restore(self.model, self.optimizers())
+        meta, extra = self.folder.restore(self.model, self.optimizers())
+        # A run resumed in fp16 continues with its loss scale; in another precision there is none to restore.
+        if self.scaler.is_enabled() and extra.get("scaler"):
+            self.scaler.load_state_dict(extra["scaler"])
         with run_file_contents(self.folder.path / POINTER):
             self.epoch, self.position, self.step, total = (int(meta[key]) for key in
                                                            ("epoch", "position", "step", "total_epochs"))
+            self.trained_seconds = float(meta.get("trained_seconds", 0.0))
         self.total_epochs = self.options.epochs or total
 
 
 def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_name: str = "small",
                 options: TrainOptions | None = None, resume: bool = False, poses: str | os.PathLike | None = None,
                 vgg_weights: str | os.PathLike | None = None, device: str = "auto",
-                overrides: dict | None = None) -> dict:
+                overrides: dict | None = None, precision: str = "auto") -> dict:
     """Train (or with ``resume`` continue) an appearance model of the person in ``video``; returns the last meta.
 
     ``poses``: a pose file for ``video`` (same canvas) used instead of extracting poses.
     ``overrides``: config fields replacing the preset's (e.g. ``{"width": 256, "height": 256}``).
+    ``precision``: ``auto`` (bf16 on CPUs with AMX/AVX-512-BF16 and on GPUs, fp16 on GPUs without bf16, else
+    fp32), ``fp32``, ``bf16`` or ``fp16`` (CUDA): what the forward passes compute in; weights stay float32.
     """
     video, run_dir = Path(video), Path(run_dir)
     options = options or TrainOptions()
@@ -274,6 +305,7 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
     if options.minutes is None and options.epochs is None:
         raise DancesynthError("Give a time budget with --minutes or a length with --epochs.")
     dev = resolve_device(device)
+    dtype = resolve_precision(precision, dev)
     run = RunFolder(run_dir, KIND, dev, resume=resume, tables=("losses", "validation"))
     if run.meta is not None:
         with run_file_contents(run.path / POINTER):
@@ -282,16 +314,17 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
     else:
         config = preset(preset_name, **(overrides or {}))
         framing = None
-    # Rank 0 extracts and caches poses and frames; the other ranks then read the caches.
+    # Rank 0 extracts and caches poses, frames and the background plate; the other ranks then read the caches.
     if not run.writer:
         run.barrier()
     seq = check_poses_match(load_or_extract_poses(video, run_dir, Path(poses) if poses else None), video)
     framing = framing or person_framing(seq, config.width, config.height)
     frames = cache_frames(video, framing, run_dir, len(seq))
     if run.writer:
+        cache_plate(video, seq, run_dir)
         run.barrier()
     trainer = VideoTrainer(config, TargetVideo(frames, seq, framing), run, dev, build_vgg_loss(vgg_weights),
-                      options, str(video))
+                      options, str(video), dtype)
     if resume:
         trainer.restore()
     return trainer.fit()

@@ -5,21 +5,38 @@ from __future__ import annotations
 import argparse
 import logging
 
-from apps.arguments import existing_file, non_negative_float, non_negative_int, output_file, positive_float
+from apps.arguments import (
+    add_precision_argument,
+    existing_file,
+    non_negative_float,
+    non_negative_int,
+    output_file,
+    output_folder,
+    positive_float,
+    positive_int,
+)
 
 NAME = "dance"
 HELP = "make a video of the target person dancing to a song"
 DESCRIPTION = """\
-Generate a dance for SONG with a stage-1 pose model, move it onto the target person's body
-(Everybody-Dance-Now normalisation) and render it with their stage-2 appearance model. The output mp4 has
-the target model's resolution and frame rate and the song segment as AAC audio; picture and sound last
-the segment's duration within one frame.
+Generate a dance for SONG with a stage-1 pose model (the one shipped with dancesynth unless --pose-model is
+given), move it onto the target person's body (Everybody-Dance-Now normalisation, then the person's own bone
+lengths) and render it with their appearance model, composited into their own scene. The output mp4 has the
+target video's resolution (or --height) and frame rate and the song segment as AAC audio; picture and sound
+last the segment's duration within one frame.
+
+The person comes from --target VIDEO (one command: their appearance model is looked up in the cache, keyed by
+the video's content and the preset, or trained now for --train-minutes; a later call with more minutes continues
+it; a call with the same video and no more minutes starts rendering at once) or from --video-model RUN (a
+run folder of `dancesynth train-video`).
 
 SONG may be any audio FFmpeg reads (wav, mp3, ogg, m4a, flac, or the soundtrack of a video).
 
-example:
-  dancesynth dance song.mp3 --pose-model runs/pose/dance_revolution --video-model runs/me \\
-      --out me_dancing.mp4 --start 30 --duration 20 --side-by-side compare.mp4
+examples:
+  dancesynth dance song.mp3 --target me.mp4 --out me_dancing.mp4
+  dancesynth dance song.mp3 --target me.mp4 --train-minutes 60 --start 30 --duration 20 --out me.mp4
+  dancesynth dance song.mp3 --video-model runs/me --pose-model runs/pose/dance_revolution \\
+      --out me_dancing.mp4 --side-by-side compare.mp4
 """
 
 logger = logging.getLogger(__name__)
@@ -27,10 +44,22 @@ logger = logging.getLogger(__name__)
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("song", type=existing_file, metavar="SONG", help="the song (any FFmpeg-readable audio file)")
-    p.add_argument("--pose-model", required=True, metavar="RUN",
-                   help="stage-1 run folder (from train-pose), or a folder of runs named by method")
-    p.add_argument("--video-model", required=True, metavar="RUN", help="stage-2 run folder (from train-video)")
     p.add_argument("--out", type=output_file, required=True, metavar="OUT.mp4", help="the dancing video to write")
+    who = p.add_mutually_exclusive_group(required=True)
+    who.add_argument("--target", type=existing_file, metavar="VIDEO",
+                     help="video of the person to animate (their appearance model is cached or trained now)")
+    who.add_argument("--video-model", metavar="RUN", help="stage-2 run folder (from train-video)")
+    p.add_argument("--train-minutes", type=positive_float, default=30.0, metavar="M",
+                   help="with --target: minutes of appearance training in all (default 30); more continues "
+                        "the cached model")
+    p.add_argument("--cache", type=output_folder, default=None, metavar="DIR",
+                   help="with --target: appearance-model cache (default ~/.cache/dancesynth/appearance)")
+    p.add_argument("--preset", choices=("auto", "small", "medium"), default="auto",
+                   help="with --target: appearance model size, small = 128 px, medium = 256 px; auto = medium on "
+                        "GPUs and bf16 CPUs, small elsewhere")
+    p.add_argument("--pose-model", default=None, metavar="RUN",
+                   help="stage-1 run folder (from train-pose), or a folder of runs named by method "
+                        "(default: the built-in Dance Revolution model)")
     p.add_argument("--method", default=None,
                    help="which run to use when --pose-model is a folder of runs (default dance_revolution)")
     p.add_argument("--seed", type=non_negative_int, default=0,
@@ -39,18 +68,26 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="segment start in seconds (default 0)")
     p.add_argument("--duration", type=positive_float, default=None, metavar="D",
                    help="segment length in seconds (default: to the end of the song)")
+    p.add_argument("--height", type=positive_int, default=None, metavar="H",
+                   help="output height in pixels, aspect kept (default: the target video's)")
+    p.add_argument("--crop", action="store_true",
+                   help="write the model's square crop around the person instead of the whole scene")
     p.add_argument("--skeleton-preview", type=output_file, default=None, metavar="PATH",
                    help="also write the skeleton as a video")
     p.add_argument("--side-by-side", type=output_file, default=None, metavar="PATH",
                    help="also write skeleton | generated person side by side")
+    add_precision_argument(p, "the appearance model's training (with --target) and rendering")
     p.add_argument("--device", default="auto", help="auto (GPU when available), cpu or cuda (default auto)")
 
 
 def run(args: argparse.Namespace) -> None:
     from dancesynth.api import dance
 
-    result = dance(args.song, pose_model=args.pose_model, video_model=args.video_model, out=args.out,
-                   method=args.method, seed=args.seed, start=args.start, duration=args.duration,
-                   skeleton_preview=args.skeleton_preview, side_by_side=args.side_by_side, device=args.device)
-    logger.info(f"{len(result.poses)} frames at {result.poses.fps:g} fps; wrote "
-                + ", ".join(map(str, result.written)))
+    result = dance(args.song, out=args.out, target=args.target, video_model=args.video_model,
+                   pose_model=args.pose_model, cache=args.cache, train_minutes=args.train_minutes,
+                   preset=args.preset, method=args.method, seed=args.seed, start=args.start,
+                   duration=args.duration, height=args.height, crop=args.crop,
+                   skeleton_preview=args.skeleton_preview, side_by_side=args.side_by_side,
+                   precision=args.precision, device=args.device)
+    logger.info(f"{len(result.poses)} frames at {result.poses.fps:g} fps with the appearance model "
+                f"{result.video_model}; wrote " + ", ".join(map(str, result.written)))

@@ -8,17 +8,16 @@ import logging
 from apps.arguments import non_negative_int, output_folder, positive_float
 
 NAME = "demo"
-HELP = "build the built-in dataset, train small models and make a dancing video (about 15 min on 2 CPU cores)"
+HELP = "train an appearance model of a synthetic person and make them dance to a built-in song (about 15 min)"
 DESCRIPTION = """\
-Run the whole pipeline on data the project makes itself, within a time budget:
-  1. the built-in dataset of synthesised songs and dances (3 styles),
-  2. a small Dancing2Music pose model (the paper's ablation without the composition phase, which needs
-     far longer than the demo's minutes), whose units are warped onto the song's beats,
-  3. a synthetic target person's video and a small pix2pixHD appearance model of them,
-  4. a dancing video for the held-out song whose real dance moves most, a skeleton video and a side-by-side
-     video,
-  5. OUT/summary.md with beat metrics of the generated dance vs the real one, held-out SSIM/PSNR of the
-     appearance model, a strip of frames and the time each step took.
+Run the main job on data the project makes itself, within a time budget:
+  1. a few built-in synthesised songs, none of which the shipped pose model has heard,
+  2. a synthetic target person's video (512 px high) and an appearance model of them, trained for every
+     minute of the budget but the dance step's (256 px on GPUs and bf16 CPUs, 128 px elsewhere),
+  3. the shipped pose model (Dance Revolution) dances one song; the dance is rendered in the target's
+     scene at the target video's resolution: a dancing video, a skeleton video and a side-by-side video,
+  4. OUT/summary.md with beat metrics of the generated dance vs the song's real one, held-out SSIM/PSNR of
+     the appearance model, a strip of frames and the time each step took.
 Each step is skipped when its output exists, so an interrupted demo continues where it stopped.
 
 example:

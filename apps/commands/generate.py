@@ -10,12 +10,14 @@ from apps.arguments import existing_file, non_negative_int, output_file
 NAME = "generate"
 HELP = "generate a dance (BODY_25 pose sequence) for a song with a trained pose model"
 DESCRIPTION = """\
-Generate a dance for SONG (any audio file, any length) with a model trained by `dancesynth train-pose`.
+Generate a dance for SONG (any audio file, any length) with a model trained by `dancesynth train-pose`, or
+without --model the pose model shipped with dancesynth (Dance Revolution, trained on the built-in data).
 The output .npz holds keypoints [T, 25, 3] (x, y in pixels of the training canvas, confidence 1), fps, width,
 height; T = song length x fps. Another --seed gives another dance (for stochastic methods).
 --preview writes a skeleton video with the song as its soundtrack.
 
 examples:
+  dancesynth generate song.mp3 --out poses.npz
   dancesynth generate song.mp3 --model runs/dr --out poses.npz
   dancesynth generate song.mp3 --model runs/dr --out poses.npz --seed 3 --preview preview.mp4
 """
@@ -26,7 +28,8 @@ logger = logging.getLogger(__name__)
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("song", type=existing_file, metavar="SONG",
                         help="audio file (mp3, wav, m4a, ... or a video's soundtrack)")
-    parser.add_argument("--model", required=True, metavar="RUN_DIR", help="run folder from dancesynth train-pose")
+    parser.add_argument("--model", default=None, metavar="RUN_DIR",
+                        help="run folder from dancesynth train-pose (default: the built-in Dance Revolution model)")
     parser.add_argument("--out", type=output_file, required=True, metavar="POSES.npz", help="output pose file")
     parser.add_argument("--seed", type=non_negative_int, default=0, help="random seed of the dance (default 0)")
     parser.add_argument("--preview", type=output_file, metavar="VIDEO.mp4",

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import logging
 
-from apps.arguments import existing_file, output_file, positive_int
+from apps.arguments import add_precision_argument, existing_file, output_file, positive_int
 
 NAME = "render"
 HELP = "render a pose sequence as a video of the person a train-video model learned"
@@ -32,6 +32,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-normalize", action="store_true", help="use the poses as they are (target canvas)")
     parser.add_argument("--no-optimize", action="store_true", help="plain PyTorch forward (slower, for debugging)")
     parser.add_argument("--device", default="auto", help="auto, cpu or cuda")
+    add_precision_argument(parser, "rendering")
     parser.add_argument("--threads", type=positive_int, metavar="N",
                         help="CPU threads for torch (default: torch's choice; 1 is faster on a busy machine)")
 
@@ -45,6 +46,6 @@ def run(args: argparse.Namespace) -> None:
     from dancesynth.core.media import probe_video
 
     path = render(args.poses, model=args.model, out=args.out, audio=args.audio, normalize=not args.no_normalize,
-                  optimize=not args.no_optimize, device=args.device)
+                  optimize=not args.no_optimize, device=args.device, precision=args.precision)
     video = probe_video(path)
     logger.info(f"wrote {path}: {video.num_frames} frames at {video.fps:g} fps, {video.width}x{video.height}")

@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 import logging
 
-from apps.arguments import existing_file, non_negative_int, output_folder, positive_float, positive_int
+from apps.arguments import (
+    add_precision_argument,
+    existing_file,
+    non_negative_int,
+    output_folder,
+    positive_float,
+    positive_int,
+)
 from apps.config_flags import add_config_arguments, print_config, resolve_config
 from dancesynth.core.config import config_to_dict
 from dancesynth.core.errors import DancesynthError
@@ -57,6 +64,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sample-every", type=positive_int, default=200, metavar="STEPS")
     parser.add_argument("--seed", type=non_negative_int, default=0)
     parser.add_argument("--device", default="auto", help="auto, cpu or cuda")
+    add_precision_argument(parser, "the forward passes (weights stay float32)")
     parser.add_argument("--threads", type=positive_int, metavar="N",
                         help="CPU threads for torch (default: torch's choice; 1 is faster on a busy machine)")
     add_config_arguments(parser, "lambda_l1=5")
@@ -89,7 +97,8 @@ def run(args: argparse.Namespace) -> None:
     meta = train_video(args.video, out=args.out, preset=args.preset, overrides=config_to_dict(config),
                        minutes=args.minutes, epochs=args.epochs, resume=args.resume, poses=args.poses,
                        vgg_weights=args.vgg_weights, checkpoint_every=args.checkpoint_every,
-                       sample_every=args.sample_every, seed=args.seed, device=args.device)
+                       sample_every=args.sample_every, seed=args.seed, device=args.device,
+                       precision=args.precision)
     val = meta.get("validation", {})
     logger.info(f"saved {args.out}: epoch {meta['epoch']}, step {meta['step']}, "
                 f"held-out SSIM {val.get('ssim', float('nan')):.3f}, PSNR {val.get('psnr', float('nan')):.2f} dB")

@@ -98,9 +98,9 @@ def has_checkpoint(run_dir: str | os.PathLike) -> bool:
     return (Path(run_dir) / POINTER).is_file()
 
 
-def save_checkpoint(run_dir: str | os.PathLike, model: nn.Module, meta: dict[str, Any],
+def save_checkpoint(run_dir: str | os.PathLike, model: nn.Module | dict[str, torch.Tensor], meta: dict[str, Any],
                     training_state: dict[str, Any] | None = None) -> None:
-    """Make (model, ``meta``, ``training_state``) the current checkpoint of ``run_dir``, atomically.
+    """Make (model or state dict, ``meta``, ``training_state``) the current checkpoint of ``run_dir``, atomically.
 
     ``meta`` must be JSON-serialisable and contain ``kind``; an integer ``step`` entry names the checkpoint
     folder. ``training_state`` may hold tensors, numbers, strings, lists, tuples and dicts (e.g.
@@ -115,7 +115,8 @@ def save_checkpoint(run_dir: str | os.PathLike, model: nn.Module, meta: dict[str
     text = json.dumps({**meta, "checkpoint": name, "save_id": save_id}, indent=2, sort_keys=True)
     with atomic_path(run_dir / name, folder=True) as tmp:
         tmp.mkdir()
-        _save_weights(_plain_state_dict(model), tmp / WEIGHTS, {"save_id": save_id, "kind": str(meta["kind"])})
+        tensors = _plain_state_dict(model) if isinstance(model, nn.Module) else model
+        _save_weights(tensors, tmp / WEIGHTS, {"save_id": save_id, "kind": str(meta["kind"])})
         if training_state is not None:
             # Serialised in memory and written by Python: torch reports a failed write (a full or read-only
             # disk) as a RuntimeError without the cause, Python's OSError names it.
@@ -125,6 +126,18 @@ def save_checkpoint(run_dir: str | os.PathLike, model: nn.Module, meta: dict[str
     with atomic_path(run_dir / POINTER) as tmp:
         tmp.write_text(text)
     remove_stale_checkpoints(run_dir)
+
+
+def export_checkpoint(run_dir: str | os.PathLike, dest: str | os.PathLike, expected_kind: str,
+                      drop: tuple[str, ...] = ()) -> Path:
+    """Copy the current checkpoint of ``run_dir`` to the new run folder ``dest`` with its weights and metadata
+    only (no optimizer or RNG state, nothing to resume): what a release ships. ``drop`` names metadata entries
+    left out (e.g. a local dataset path). The folder appears complete or not at all."""
+    state, meta = load_checkpoint(run_dir, expected_kind)
+    meta = {k: v for k, v in meta.items() if k not in {"checkpoint", "save_id", *drop}}
+    with atomic_path(Path(dest), folder=True) as tmp:
+        save_checkpoint(tmp, {name: t.contiguous() for name, t in state.items()}, meta)
+    return Path(dest)
 
 
 def _save_weights(tensors: dict[str, torch.Tensor], path: Path, metadata: dict[str, str]) -> None:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.interpolate import PchipInterpolator
 
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
@@ -49,6 +50,8 @@ COCO18_TO_BODY25: tuple[int, ...] = (0, 1, 2, 3, 4, 5, 6, 7, 9, 10, 11, 12, 13, 
 D2M14_TO_BODY25: tuple[int, ...] = COCO18_TO_BODY25[:14]
 # BODY_25 index of each COCO-17 joint (AIST++ / MS-COCO order, which has no neck).
 COCO17_TO_BODY25: tuple[int, ...] = (0, 16, 15, 18, 17, 5, 2, 6, 3, 7, 4, 12, 9, 13, 10, 14, 11)
+# The smallest confidence of a present joint (confidence 0 = absent): the threshold that tells the two apart.
+PRESENT_CONFIDENCE = float(np.finfo(np.float32).tiny)
 
 
 @dataclass
@@ -185,17 +188,25 @@ def interpolate_missing(seq: PoseSequence, min_confidence: float = 0.1) -> PoseS
 
 
 def resample(seq: PoseSequence, fps: float) -> PoseSequence:
-    """Resample to ``fps`` by linear interpolation in time.
+    """Resample to ``fps``: positions by monotone cubic (PCHIP) interpolation in time, confidence linearly.
 
-    The result has ``round(duration * fps)`` frames (at least 1); frame i sits at time i / fps seconds.
-    Confidence is interpolated too, so a joint absent on either side comes out with reduced confidence.
+    The result has ``round(duration * fps)`` frames (at least 1); frame i sits at time i / fps seconds, and
+    times past the last source frame hold its pose. PCHIP has a continuous first derivative (no velocity jumps
+    at the source frames, unlike linear interpolation), passes through every source frame and never overshoots
+    it. Absent joints' meaningless positions are first filled in time from the frames where the joint is
+    present, so they cannot bend the curve of its neighbouring frames. Confidence is interpolated linearly, so
+    a joint absent on either side comes out with reduced confidence.
     """
     n_out = max(1, int(round(seq.duration * fps)))
     src_t = np.arange(len(seq)) / seq.fps
-    dst_t = np.arange(n_out) / fps
-    flat = seq.keypoints.reshape(len(seq), -1)
-    out = np.stack([np.interp(dst_t, src_t, flat[:, k]) for k in range(flat.shape[1])], axis=1)
-    return PoseSequence(out.reshape(n_out, NUM_JOINTS, 3), fps, seq.width, seq.height)
+    if len(seq) == 1:
+        return PoseSequence(np.repeat(seq.keypoints, n_out, axis=0), fps, seq.width, seq.height)
+    dst_t = np.minimum(np.arange(n_out) / fps, src_t[-1])
+    xy = interpolate_missing(seq, PRESENT_CONFIDENCE).xy.reshape(len(seq), -1).astype(np.float64)
+    conf = seq.confidence
+    out_xy = PchipInterpolator(src_t, xy, axis=0)(dst_t).reshape(n_out, NUM_JOINTS, 2)
+    out_conf = np.stack([np.interp(dst_t, src_t, conf[:, j]) for j in range(NUM_JOINTS)], axis=1)
+    return PoseSequence(np.concatenate([out_xy, out_conf[..., None]], axis=-1), fps, seq.width, seq.height)
 
 
 @dataclass(frozen=True)

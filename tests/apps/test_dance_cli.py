@@ -69,16 +69,36 @@ def test_dance_writes_a_video_with_the_song_segment(models, tmp_path, capsys, ex
                  "--out", str(out), "--start", "0.5", "--duration", "2", "--side-by-side", str(side),
                  "--device", "cpu"])
     assert code == 0, capsys.readouterr().err
-    info = probe_video(out)
-    assert (info.width, info.height) == (32, 32)
+    # The target's whole scene at the target video's resolution, not the model's 32-px crop.
+    info, target = probe_video(out), probe_video(video_run.parent / "target.mp4")
+    assert (info.width, info.height) == (target.width, target.height)
     streams = probe_streams(out)
     fps = info.fps
     assert abs(streams["video_duration"] - 2.0) <= 1 / fps
     assert abs(streams["audio_duration"] - streams["video_duration"]) <= 1 / fps
-    assert probe_video(side).width == 64
+    assert (probe_video(side).width, probe_video(side).height) == (2 * target.width, target.height)
     # The muxed audio is the chosen segment of the song (the click train), not silence.
     assert np.sqrt(np.mean(decode_audio(out, 8000) ** 2)) > 0.05
     assert str(out) in capsys.readouterr().err
+
+
+def test_crop_keeps_the_model_resolution_and_height_scales_the_scene(models, tmp_path):
+    pose_run, video_run = models
+    song = _song(tmp_path / "song.wav", seconds=2.0)
+    common = ["--pose-model", str(pose_run), "--video-model", str(video_run), "--device", "cpu"]
+    assert main(["dance", str(song), *common, "--out", str(tmp_path / "crop.mp4"), "--crop"]) == 0
+    assert (probe_video(tmp_path / "crop.mp4").width, probe_video(tmp_path / "crop.mp4").height) == (32, 32)
+    assert main(["dance", str(song), *common, "--out", str(tmp_path / "h.mp4"), "--height", "128"]) == 0
+    target, scaled = probe_video(video_run.parent / "target.mp4"), probe_video(tmp_path / "h.mp4")
+    assert scaled.height == 128 and abs(scaled.width / scaled.height - target.width / target.height) < 0.02
+
+
+def test_without_a_pose_model_the_shipped_one_dances(models, tmp_path):
+    _, video_run = models
+    song = _song(tmp_path / "song.wav", seconds=2.0)
+    assert main(["dance", str(song), "--video-model", str(video_run), "--out", str(tmp_path / "d.mp4"),
+                 "--device", "cpu"]) == 0
+    assert abs(probe_streams(tmp_path / "d.mp4")["video_duration"] - 2.0) <= 1 / 15
 
 
 def test_dance_from_a_folder_of_runs_picks_the_method(models, tmp_path):
@@ -104,6 +124,9 @@ def test_bad_inputs_are_one_sentence_errors_and_leave_no_file(models, tmp_path, 
         ([str(song), "--pose-model", str(pose_run), "--video-model", str(pose_run)], "appearance model"),
         ([str(song), "--pose-model", str(pose_run), "--video-model", str(video_run), "--start", "9"],
          "outside the song"),
+        ([str(song), "--pose-model", str(pose_run)], "one of the arguments --target --video-model is required"),
+        ([str(song), "--target", str(song), "--video-model", str(video_run)], "not allowed with"),
+        ([str(song), "--method", "ren", "--video-model", str(video_run)], "built-in pose model is dance_revolution"),
     ]
     for args, words in cases:
         assert main(["dance", *args, "--out", str(out)]) == 1

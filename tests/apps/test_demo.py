@@ -9,11 +9,11 @@ torch.set_num_threads(1)
 
 from apps.cli import main  # noqa: E402
 from apps.demo import DemoPlan, run_demo  # noqa: E402
-from dancesynth.core.media import probe_streams  # noqa: E402
+from dancesynth.core.media import probe_streams, probe_video  # noqa: E402
 
 # The demo's own steps at toy sizes: 6 songs of 12 s, a 4-s target video, a 3-s dance.
 TOY = DemoPlan(clips=6, clip_seconds=12.0, target_seconds=4.0, target_size=128, dance_seconds=3.0,
-               finish_minutes=0.0, min_train_minutes=0.1, pose_overrides={"window_frames": 90, "batch_size": 4})
+               finish_minutes=0.0, min_train_minutes=0.1, preset="small")
 
 
 def test_demo_writes_a_dance_with_the_song_summary_and_pictures_within_its_budget(tmp_path):
@@ -24,6 +24,9 @@ def test_demo_writes_a_dance_with_the_song_summary_and_pictures_within_its_budge
     assert {"dance.mp4", "skeleton.mp4", "side_by_side.mp4", "summary.md"} <= names
     streams = probe_streams(tmp_path / "demo" / "dance.mp4")
     assert streams["video_codec"] == "h264" and streams["audio_codec"] == "aac"
+    # The whole scene of the target video (its canvas), not the model's 128-px crop.
+    target, dance = (probe_video(tmp_path / "demo" / name) for name in ("target/target.mp4", "dance.mp4"))
+    assert (dance.width, dance.height) == (target.width, target.height)
     assert streams["video_duration"] == pytest.approx(TOY.dance_seconds, abs=1 / streams["fps"])
     assert streams["audio_duration"] == pytest.approx(TOY.dance_seconds, abs=1 / streams["fps"])
     summary = (tmp_path / "demo" / "summary.md").read_text()

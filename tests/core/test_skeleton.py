@@ -5,6 +5,7 @@ import pytest
 
 from dancesynth.core import skeleton
 from dancesynth.core.errors import DancesynthError
+from dancesynth.core.motion import mean_jerk
 from dancesynth.core.skeleton import NECK, NUM_JOINTS, ROOT, PoseSequence
 
 
@@ -65,6 +66,46 @@ def test_resample_keeps_duration_and_linear_motion():
     up = skeleton.resample(seq, 60.0)
     assert len(up) == 60
     np.testing.assert_allclose(up.keypoints[:58, 3, 0], 100 * np.arange(58) / 60.0, atol=1e-4)
+
+
+
+def dance_at_15fps(seconds: float = 4.0) -> PoseSequence:
+    """Joints swinging at 0.5-1.9 Hz, sampled at 15 fps as stage 1 makes dances."""
+    t = np.arange(int(seconds * 15))[:, None] / 15.0
+    j = np.arange(NUM_JOINTS)[None, :]
+    kp = np.ones((len(t), NUM_JOINTS, 3), np.float32)
+    kp[..., 0] = 320 + 40 * np.sin(2 * np.pi * (0.5 + 0.05 * j) * t) + 3 * j
+    kp[..., 1] = 180 + 25 * np.cos(2 * np.pi * (0.7 + 0.04 * j) * t + j) - 4 * j
+    return PoseSequence(kp, 15.0, 640, 360)
+
+
+def test_resample_is_smooth_and_passes_through_the_source_frames():
+    seq = dance_at_15fps()
+    up = skeleton.resample(seq, 30.0)
+    assert len(up) == 2 * len(seq) and up.duration == seq.duration
+    # Every second output frame sits at a source frame's time and reproduces it.
+    np.testing.assert_allclose(up.keypoints[::2], seq.keypoints, atol=1e-4)
+    linear = np.stack([np.interp(np.arange(len(up)) / 30.0, np.arange(len(seq)) / 15.0, c)
+                       for c in seq.xy.reshape(len(seq), -1).T], axis=1).reshape(len(up), NUM_JOINTS, 2)
+    assert mean_jerk(up.xy, 30.0) < 0.5 * mean_jerk(linear, 30.0)
+    # C1: the velocity into a source frame matches the velocity out of it (linear interpolation jumps there).
+    fine = skeleton.resample(seq, 1500.0).xy.astype(np.float64)
+    v = np.diff(fine, axis=0) * 1500.0
+    at_source = np.arange(100, len(fine) - 100, 100)
+    jump = np.abs(v[at_source] - v[at_source - 1]).max()
+    assert jump < 0.05 * np.abs(v).max()
+
+
+def test_resample_ignores_positions_of_absent_joints():
+    seq = dance_at_15fps(2.0)
+    kp = seq.keypoints.copy()
+    kp[10, 4] = (0.0, 0.0, 0.0)  # a dropped detection: its (0, 0) must not pull the curve of frames 9 and 11
+    up = skeleton.resample(seq.replace(kp), 30.0)
+    # The gap is bridged as if the joint had moved straight from frame 9 to frame 11.
+    kp[10, 4] = (kp[9, 4] + kp[11, 4]) / 2
+    bridged = skeleton.resample(seq.replace(kp), 30.0)
+    np.testing.assert_allclose(up.xy[:, 4], bridged.xy[:, 4], atol=1e-4)
+    np.testing.assert_allclose(up.confidence[[19, 20, 21], 4], [0.5, 0.0, 0.5], atol=1e-6)
 
 
 def test_layout_conversions():

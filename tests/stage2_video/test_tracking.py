@@ -1,7 +1,9 @@
 """Person selection and tracking logic, with a scripted stand-in for BlazePose (no model needed)."""
 
 import numpy as np
+import pytest
 
+from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import JOINT_INDEX
 from stage2_video.tracking import Box, PersonTracker, choose_target, find_people, pose_box, torso
 
@@ -110,3 +112,12 @@ def test_crop_follows_the_target_so_a_bigger_person_outside_it_is_never_taken():
     scenes = [[target[0]]] + [[bigger, target[t]] for t in range(1, 8)]
     tracker = PersonTracker(ScriptedEstimator(scenes), W, H)
     assert all(p is target[t] for t, p in enumerate(run(tracker, 8)))
+
+
+def test_two_equally_prominent_people_are_refused_one_clear_target_is_not():
+    twins = [[person(250, 150, 60), person(390, 150, 60)]]
+    with pytest.raises(DancesynthError, match="people of about the same size"):
+        PersonTracker(ScriptedEstimator(twins), W, H).step(frame(0))
+    # A third bigger than the other: clearly the dancer.
+    clear = [[person(250, 150, 60), person(390, 150, 80)]]
+    assert PersonTracker(ScriptedEstimator(clear), W, H).step(frame(0)) is clear[0][1]

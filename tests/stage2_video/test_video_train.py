@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import torch
 
+from dancesynth.core import device as device_module
 from dancesynth.core.checkpoint import load_checkpoint
 from dancesynth.core.errors import DancesynthError
 from stage2_video.train import TrainOptions, train_video
@@ -14,11 +15,14 @@ def _rows(path):
         return list(csv.DictReader(f))
 
 
-def test_tiny_model_learns_to_reproduce_frames(tiny_target, tiny_config, tmp_path):
+@pytest.mark.parametrize("precision", ["fp32", "bf16"])
+def test_tiny_model_learns_to_reproduce_frames(tiny_target, tiny_config, tmp_path, monkeypatch, precision):
+    # bf16 autocast runs on any CPU (slowly without AMX/AVX-512-BF16), so the test does not depend on this one's.
+    monkeypatch.setattr(device_module, "cpu_has_bf16", lambda: True)
     video, poses = tiny_target
     meta = train_video(video, tmp_path, "small", TrainOptions(epochs=6, val_frames=4, sample_every=1000,
                                                               checkpoint_every=1000),
-                       poses=poses, device="cpu", overrides={**tiny_config, "lr": 2e-3})
+                       poses=poses, device="cpu", overrides={**tiny_config, "lr": 2e-3}, precision=precision)
     rows = _rows(tmp_path / "losses.csv")
     l1 = np.array([float(r["g_l1"]) for r in rows])
     assert len(rows) == meta["step"] == 6 * 5
@@ -26,7 +30,9 @@ def test_tiny_model_learns_to_reproduce_frames(tiny_target, tiny_config, tmp_pat
     assert meta["kind"] == "stage2" and meta["target_stats"] is not None
     for name in ("latest.json", "poses.npz", "losses.png", "validation.csv"):
         assert (tmp_path / name).is_file(), name
-    assert load_checkpoint(tmp_path, "stage2")[1]["step"] == meta["step"]
+    weights, saved = load_checkpoint(tmp_path, "stage2")
+    assert saved["step"] == meta["step"] and saved["precision"] == precision
+    assert {w.dtype for w in weights.values() if w.is_floating_point()} == {torch.float32}
     assert [r["step"] for r in _rows(tmp_path / "validation.csv")] == [str(meta["step"])]
     assert list((tmp_path / "samples").glob("step_*.png"))
 

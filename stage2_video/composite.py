@@ -1,0 +1,371 @@
+"""Full-frame output: each generated crop put back into the target video's own scene, at its resolution.
+
+The appearance model sees and renders only a crop of the target's canvas (:class:`stage2_video.framing.Framing`).
+To show the dance in the target's scene, a background plate (the scene without the person) is estimated from
+the target video once: per pixel, the median of that pixel over up to ``MAX_PLATE_FRAMES`` frames in which the
+person (drawn from their poses with thick limbs, a head disc and a margin, all in torso lengths) does not cover
+it; pixels the person always covers are filled by inpainting. Each generated frame then has its framing
+inverted (padding dropped, resized back onto its crop box) and is blended over the plate through a soft mask
+around the generated pose: the same drawing, feathered with a Gaussian and faded out towards the box's edges,
+so neither the box nor the mask's outline shows.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import tempfile
+from collections.abc import Iterable
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from dancesynth.core.checkpoint import load_meta
+from dancesynth.core.draw import draw_pose
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.media import read_frames
+from dancesynth.core.progress import track
+from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX, NECK, ROOT, PoseSequence, body_scale
+from stage2_video.data import POSES_FILE, cache_file
+from stage2_video.framing import MIN_CONFIDENCE, Framing
+
+PLATE_FILE = "background.png"
+# Frames sampled for the plate's median: enough for a stable median, few enough to stay quick for long videos.
+MAX_PLATE_FRAMES = 120
+# A pixel free in fewer sampled frames than this is inpainted: one or two samples may be a badly posed frame.
+MIN_FREE_SAMPLES = 3
+# Neighbourhood (torso lengths) inpainting draws on; wider only blurs more, as the holes are person-sized.
+INPAINT_RADIUS = 0.1
+# Bytes of sampled pixels sorted at once (the plate is computed in row bands of about this size).
+BAND_BYTES = 64 << 20
+# Gap filling (stage2_video.extract) gives filled joints confidence 0.1: a frame without any joint above this
+# is a guess of where the person was, useless for telling where they were not.
+OBSERVED_CONFIDENCE = 0.2
+# A joint filled over a longer gap than this (held at its last position, or interpolated across a jump) is a
+# guess too: drawn, it would hide the same stretch of scene in every frame, so the plate leaves it out.
+MAX_GUESS_SECONDS = 0.5
+
+# Person drawing, in torso lengths (Neck-MidHip): limb thickness, head disc radius, hand length past the wrist.
+LIMB_WIDTH = 0.45
+HEAD_RADIUS = 0.4
+HAND_LENGTH = 0.35
+# Growth of the drawn person: generous for the plate (pose errors, motion blur, loose clothes), smaller for the
+# composite, where the feather (Gaussian sigma) then fades the generated frame out beyond the person.
+PLATE_MARGIN = 0.35
+COMPOSITE_MARGIN = 0.2
+FEATHER_SIGMA = 0.08
+# Width of the fade to 0 at the crop box's edges inside the canvas, where a limb reaching out of the box is cut.
+EDGE_FADE = 0.3
+# A frame's torso may look shorter (bending towards the camera) but not below this share of the reference.
+MIN_TORSO_SHARE = 0.7
+# The soft mask is drawn and blurred at a resolution where the feather is about this many pixels, then resized.
+MASK_SIGMA_PIXELS = 3.0
+
+_FACE = [JOINT_INDEX[n] for n in ("Nose", "REye", "LEye", "REar", "LEar")]
+_TORSO = [JOINT_INDEX[n] for n in ("Neck", "RShoulder", "LShoulder", "MidHip", "RHip", "LHip")]
+_FOREARMS = [(JOINT_INDEX["RElbow"], JOINT_INDEX["RWrist"]), (JOINT_INDEX["LElbow"], JOINT_INDEX["LWrist"])]
+_SHIFT = 4  # sub-pixel bits for OpenCV drawing
+
+
+def torso_length(keypoints: np.ndarray, reference: float) -> float:
+    """One pose's Neck-MidHip length in pixels, at least ``MIN_TORSO_SHARE`` of ``reference`` (pixels, e.g. the
+    sequence's :func:`body_scale`), which also stands in when the neck or hip is absent."""
+    kp = np.asarray(keypoints)
+    if kp[NECK, 2] >= MIN_CONFIDENCE and kp[ROOT, 2] >= MIN_CONFIDENCE:
+        return max(float(np.linalg.norm(kp[NECK, :2] - kp[ROOT, :2])), MIN_TORSO_SHARE * reference)
+    return reference
+
+
+def draw_person(mask: np.ndarray, xy: np.ndarray, present: np.ndarray, torso: float, margin: float) -> np.ndarray:
+    """Fill (255) the region a person covers on ``mask`` (``[h, w]`` uint8, in place) and return it.
+
+    Args:
+        xy: ``[25, 2]`` joint positions in mask pixels; ``present``: ``[25]`` bool.
+        torso: the person's torso length in mask pixels; limbs, head and hands are sized by it.
+        margin: growth in mask pixels on every side.
+    """
+    pts = np.round(np.nan_to_num(xy) * (1 << _SHIFT)).astype(np.int64)
+    limit = (1 << _SHIFT) * 4 * max(mask.shape)  # OpenCV's fixed-point maths overflows far off the canvas
+    pts = np.clip(pts, -limit, limit)
+    thickness = max(1, round(LIMB_WIDTH * torso + 2 * margin))
+    for a, b in BODY25_LIMBS:
+        if present[a] and present[b]:
+            cv2.line(mask, tuple(map(int, pts[a])), tuple(map(int, pts[b])), 255, thickness, cv2.LINE_8, _SHIFT)
+    for elbow, wrist in _FOREARMS:
+        if present[elbow] and present[wrist]:
+            direction = xy[wrist] - xy[elbow]
+            tip = xy[wrist] + direction / max(float(np.linalg.norm(direction)), 1e-6) * HAND_LENGTH * torso
+            tip = np.clip(np.round(tip * (1 << _SHIFT)), -limit, limit).astype(np.int64)
+            cv2.line(mask, tuple(map(int, pts[wrist])), tuple(map(int, tip)), 255, thickness, cv2.LINE_8, _SHIFT)
+    radius = (thickness // 2) << _SHIFT
+    for j in np.flatnonzero(present):
+        cv2.circle(mask, tuple(map(int, pts[j])), radius, 255, -1, cv2.LINE_8, _SHIFT)
+    body = [j for j in _TORSO if present[j]]
+    if len(body) >= 3:
+        hull = cv2.convexHull(pts[body].astype(np.int32))
+        cv2.fillConvexPoly(mask, hull, 255, cv2.LINE_8, _SHIFT)
+    face = [j for j in _FACE if present[j]]
+    if face:
+        centre = np.round(xy[face].mean(axis=0) * (1 << _SHIFT)).astype(np.int64).clip(-limit, limit)
+        cv2.circle(mask, tuple(map(int, centre)), round((HEAD_RADIUS * torso + margin) * (1 << _SHIFT)), 255, -1,
+                   cv2.LINE_8, _SHIFT)
+    return mask
+
+
+def person_mask(keypoints: np.ndarray, width: int, height: int, reference: float, margin: float) -> np.ndarray:
+    """``[height, width]`` bool: where the person of one ``[25, 3]`` pose (canvas pixels) stands, grown by
+    ``margin`` torso lengths; ``reference`` is the sequence's torso length in pixels."""
+    kp = np.asarray(keypoints, np.float32)
+    torso = torso_length(kp, reference)
+    mask = np.zeros((height, width), np.uint8)
+    return draw_person(mask, kp[:, :2], kp[:, 2] >= MIN_CONFIDENCE, torso, margin * torso) > 0
+
+
+def plate_frames(poses: PoseSequence, max_frames: int = MAX_PLATE_FRAMES) -> np.ndarray:
+    """Indices (ascending) of up to ``max_frames`` frames, evenly spread, whose pose was observed rather than
+    gap-filled (all frames when none was)."""
+    observed = np.flatnonzero(poses.confidence.max(axis=1) >= OBSERVED_CONFIDENCE)
+    if len(observed) == 0:
+        observed = np.arange(len(poses))
+    picks = np.round(np.linspace(0, len(observed) - 1, min(max_frames, len(observed)))).astype(int)
+    return np.unique(observed[picks])
+
+
+def trusted_joints(poses: PoseSequence) -> np.ndarray:
+    """``[T, 25]`` bool: joints observed, or filled over a gap of at most ``MAX_GUESS_SECONDS``."""
+    present = poses.confidence >= MIN_CONFIDENCE
+    filled = present & (poses.confidence < OBSERVED_CONFIDENCE)
+    longest = max(1, round(MAX_GUESS_SECONDS * poses.fps))
+    trusted = present.copy()
+    for j in range(filled.shape[1]):
+        edges = np.flatnonzero(np.diff(np.r_[0, filled[:, j].astype(np.int8), 0]))
+        for start, stop in zip(edges[::2], edges[1::2]):
+            if stop - start > longest:
+                trusted[start:stop, j] = False
+    return trusted
+
+
+def _read_rows(path: Path, shape: tuple[int, ...], start: int, stop: int) -> np.ndarray:
+    """Rows ``start:stop`` of every image in a raw uint8 file of ``shape`` ``[S, H, ...]``, copied out; the file
+    is mapped only meanwhile (a lasting map would keep every page it touched resident)."""
+    return np.array(np.memmap(path, np.uint8, "r", shape=shape)[:, start:stop])
+
+
+def _band_median(pixels: np.ndarray, covered: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-pixel median over the samples where the pixel is free.
+
+    Args:
+        pixels: ``[S, h, W, 3]`` uint8; ``covered``: ``[S, h, W]`` (non-zero = the person may be there).
+
+    Returns:
+        ``[h, W, 3]`` uint8 medians and ``[h, W]`` bool, True where fewer than ``MIN_FREE_SAMPLES`` were free.
+    """
+    covered = covered.astype(bool)
+    values = pixels.astype(np.uint16)
+    values[covered] = 256  # sorts after every real value
+    values.sort(axis=0)
+    free = (~covered).sum(axis=0)
+    low = ((np.maximum(free, 1) - 1) // 2)[None, :, :, None].repeat(3, axis=3)
+    high = (free // 2)[None, :, :, None].repeat(3, axis=3)
+    median = (np.take_along_axis(values, low, 0)[0] + np.take_along_axis(values, high, 0)[0] + 1) // 2
+    return np.minimum(median, 255).astype(np.uint8), free < MIN_FREE_SAMPLES
+
+
+def background_plate(frames: Iterable[np.ndarray], poses: PoseSequence, max_frames: int = MAX_PLATE_FRAMES,
+                     work_dir: str | os.PathLike | None = None) -> np.ndarray:
+    """The target's scene without the person: ``[height, width, 3]`` uint8 RGB at the poses' canvas size.
+
+    Args:
+        frames: the video's frames in order (``[height, width, 3]`` uint8 RGB, e.g. :func:`read_frames`); only
+            the sampled ones are kept, and reading stops after the last of them.
+        poses: the person's poses in those frames (canvas pixels).
+        max_frames: how many frames the median is taken over (see :func:`plate_frames`).
+        work_dir: folder for the temporary copy of the sampled frames (default the system's temporary folder);
+            it takes ``max_frames x height x width x 4`` bytes of disk, while memory stays within a few times
+            ``BAND_BYTES`` whatever the video's length and size.
+    """
+    picks = plate_frames(poses, max_frames)
+    if len(picks) == 0:
+        raise DancesynthError("The pose sequence has no frames; pass the poses extracted from the target video.")
+    width, height = poses.width, poses.height
+    reference = body_scale(poses)
+    keypoints = poses.keypoints.copy()
+    keypoints[~trusted_joints(poses), 2] = 0.0
+    plate = np.empty((height, width, 3), np.uint8)
+    holes = np.empty((height, width), bool)
+    pixels_shape, covered_shape = (len(picks), height, width, 3), (len(picks), height, width)
+    with tempfile.TemporaryDirectory(dir=work_dir, prefix=".plate-") as tmp:
+        pixels_path, covered_path = Path(tmp) / "pixels", Path(tmp) / "covered"
+        slot, count = 0, 0
+        with open(pixels_path, "wb") as pixels, open(covered_path, "wb") as covered:
+            for t, frame in enumerate(frames):
+                count = t + 1
+                if t == picks[slot]:
+                    if frame.shape != (height, width, 3):
+                        raise DancesynthError(f"The video's frames are {frame.shape[1]}x{frame.shape[0]} but the "
+                                              f"poses are for {width}x{height}; pass the poses extracted from it.")
+                    pixels.write(np.ascontiguousarray(frame, np.uint8).tobytes())
+                    covered.write(person_mask(keypoints[t], width, height, reference, PLATE_MARGIN).tobytes())
+                    slot += 1
+                    if slot == len(picks):
+                        break
+        if slot < len(picks):
+            raise DancesynthError(f"The video has {count} frames but the poses have {len(poses)}; "
+                                  "pass the poses extracted from this video.")
+        rows = max(1, BAND_BYTES // (2 * len(picks) * width * 3))  # sorting works on uint16 copies
+        for y in range(0, height, rows):
+            plate[y:y + rows], holes[y:y + rows] = _band_median(_read_rows(pixels_path, pixels_shape, y, y + rows),
+                                                                _read_rows(covered_path, covered_shape, y, y + rows))
+    if holes.any():
+        radius = max(3, round(INPAINT_RADIUS * reference))
+        plate = cv2.inpaint(plate, holes.astype(np.uint8), radius, cv2.INPAINT_TELEA)
+    return plate
+
+
+def poses_digest(poses: PoseSequence) -> str:
+    """SHA-256 (hex) of the pose array and its canvas: what a plate made from these poses depends on."""
+    digest = hashlib.sha256(np.ascontiguousarray(poses.keypoints).tobytes())
+    digest.update(f"{poses.width}x{poses.height}".encode())
+    return digest.hexdigest()
+
+
+def read_plate(path: Path) -> np.ndarray:
+    """A plate written by :func:`cache_plate` -> ``[H, W, 3]`` uint8 RGB."""
+    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if image is None:
+        raise DancesynthError(f"{path} is not a readable image; delete it so the background is estimated again.")
+    return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
+
+
+def cache_plate(video: Path, poses: PoseSequence, run_dir: Path) -> np.ndarray:
+    """The plate of ``video`` (:func:`background_plate`), cached as ``RUN_DIR/background.png`` with a key file
+    naming the video's content and the poses; a plate made from another video or other poses is rebuilt."""
+    path = Path(run_dir) / PLATE_FILE
+
+    def write(tmp: Path) -> None:
+        frames = track(read_frames(video), total=len(poses), desc="background", unit="frame")
+        plate = background_plate(frames, poses, work_dir=run_dir)
+        _, png = cv2.imencode(".png", cv2.cvtColor(plate, cv2.COLOR_RGB2BGR))
+        tmp.write_bytes(png.tobytes())
+
+    cache_file(path, Path(video), write, poses=poses_digest(poses))
+    return read_plate(path)
+
+
+def load_plate(run_dir: str | os.PathLike) -> np.ndarray:
+    """The background plate of an appearance model's run: its ``background.png``, or for a run trained before
+    plates were cached, estimated now from its ``poses.npz`` and target video (when that file still exists)."""
+    from stage2_video.train import KIND  # train imports this module to cache the plate while training
+
+    run_dir = Path(run_dir)
+    if (run_dir / PLATE_FILE).is_file():
+        return read_plate(run_dir / PLATE_FILE)
+    video = load_meta(run_dir, KIND).get("video")
+    if not (video and Path(video).is_file() and (run_dir / POSES_FILE).is_file()):
+        raise DancesynthError(f"{run_dir} has no background of the target's scene and its target video {video} "
+                              "cannot be found to make one; pass --crop to write the model's crop instead.")
+    return cache_plate(Path(video), PoseSequence.load(run_dir / POSES_FILE), run_dir)
+
+
+class Compositor:
+    """Generated model-resolution frames -> full frames of the target's scene at ``size``.
+
+    Args:
+        framing: how the model's images were cut from the target's canvas.
+        plate: ``[H, W, 3]`` uint8 background plate at the canvas size.
+        size: ``(width, height)`` of the output in pixels (the canvas, or scaled with its aspect kept).
+        torso: the target's torso length in canvas pixels (:func:`body_scale` of its poses); sizes the mask.
+    """
+
+    def __init__(self, framing: Framing, plate: np.ndarray, size: tuple[int, int], torso: float) -> None:
+        self.framing = framing
+        self.canvas = (plate.shape[1], plate.shape[0])
+        self.size = (int(size[0]), int(size[1]))
+        self.sx, self.sy = self.size[0] / self.canvas[0], self.size[1] / self.canvas[1]
+        shrink = self.sx < 1 or self.sy < 1
+        self.plate = cv2.resize(plate, self.size, interpolation=cv2.INTER_AREA if shrink else cv2.INTER_CUBIC)
+        self.torso = float(torso) * self.sy
+        f = framing
+        box = (f.x0 * self.sx, f.y0 * self.sy, (f.x0 + f.crop_width) * self.sx, (f.y0 + f.crop_height) * self.sy)
+        self.box = box
+        # The box's part inside the output, in whole pixels: the only region a generated frame touches.
+        self.region = (max(0, math.floor(box[0])), max(0, math.floor(box[1])),
+                       min(self.size[0], math.ceil(box[2])), min(self.size[1], math.ceil(box[3])))
+
+    def to_output(self, xy: np.ndarray) -> np.ndarray:
+        """``[..., 2]`` canvas pixels -> output pixels (pixel-centre convention of ``cv2.resize``)."""
+        out = np.asarray(xy, np.float32).copy()
+        out[..., 0] = (out[..., 0] + 0.5) * self.sx - 0.5
+        out[..., 1] = (out[..., 1] + 0.5) * self.sy - 0.5
+        return out
+
+    def _uncrop(self, generated: np.ndarray) -> np.ndarray:
+        """The generated image without padding, resampled onto the region: ``[rh, rw, 3]`` uint8."""
+        f = self.framing
+        inner = generated[f.pad_y:f.pad_y + f.inner_height, f.pad_x:f.pad_x + f.inner_width]
+        ax, ay = f.crop_width / f.inner_width * self.sx, f.crop_height / f.inner_height * self.sy
+        x0, y0, x1, y1 = self.region
+        # inner pixel i (centre) -> canvas (i + 0.5) * crop / inner - 0.5 + x0 -> output, minus the region origin
+        m = np.array([[ax, 0, 0.5 * ax + f.x0 * self.sx - 0.5 - x0],
+                      [0, ay, 0.5 * ay + f.y0 * self.sy - 0.5 - y0]], np.float64)
+        return cv2.warpAffine(inner, m, (x1 - x0, y1 - y0), flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
+
+    def alpha(self, keypoints: np.ndarray) -> np.ndarray:
+        """``[rh, rw]`` float32 in [0, 1]: the generated frame's weight over the region for one ``[25, 3]``
+        pose in canvas pixels (1 on the person, a Gaussian fall-off around, 0 at the box's inner edges)."""
+        x0, y0, x1, y1 = self.region
+        torso = torso_length(np.c_[self.to_output(keypoints[:, :2]), keypoints[:, 2]], self.torso)
+        sigma = FEATHER_SIGMA * torso
+        scale = min(1.0, MASK_SIGMA_PIXELS / max(sigma, 1e-6))
+        small = np.zeros((max(1, math.ceil((y1 - y0) * scale)), max(1, math.ceil((x1 - x0) * scale))), np.uint8)
+        xy = (self.to_output(keypoints[:, :2]) - (x0, y0) + 0.5) * scale - 0.5
+        draw_person(small, xy, keypoints[:, 2] >= MIN_CONFIDENCE, torso * scale, COMPOSITE_MARGIN * torso * scale)
+        soft = cv2.GaussianBlur(small.astype(np.float32) / 255.0, (0, 0), sigma * scale)
+        soft = cv2.resize(soft, (x1 - x0, y1 - y0), interpolation=cv2.INTER_LINEAR)
+        return soft * self._edge_fade(EDGE_FADE * torso)
+
+    def _edge_fade(self, width: float) -> np.ndarray:
+        """``[rh, rw]`` ramp from 0 at each box edge that lies inside the canvas to 1 at ``width`` pixels in."""
+        x0, y0, x1, y1 = self.region
+        ramps = []
+        for lo, hi, start, stop, size in ((self.box[0], self.box[2], x0, x1, self.size[0]),
+                                          (self.box[1], self.box[3], y0, y1, self.size[1])):
+            centres = np.arange(start, stop, dtype=np.float32) + 0.5
+            ramp = np.ones_like(centres)
+            if lo > 0:
+                ramp = np.minimum(ramp, np.clip((centres - lo) / width, 0, 1))
+            if hi < size:
+                ramp = np.minimum(ramp, np.clip((hi - centres) / width, 0, 1))
+            ramps.append(ramp)
+        return ramps[1][:, None] * ramps[0][None, :]
+
+    def frame(self, generated: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
+        """One generated ``[model height, model width, 3]`` uint8 frame and the ``[25, 3]`` pose (canvas pixels)
+        it was rendered from -> ``[height, width, 3]`` uint8 frame of the scene at the output size."""
+        out = self.plate.copy()
+        x0, y0, x1, y1 = self.region
+        if x1 <= x0 or y1 <= y0:
+            return out
+        a = self.alpha(np.asarray(keypoints, np.float32))
+        out[y0:y1, x0:x1] = cv2.blendLinear(self._uncrop(generated), out[y0:y1, x0:x1], a, 1.0 - a)
+        return out
+
+    def skeleton(self, keypoints: np.ndarray) -> np.ndarray:
+        """The ``[25, 3]`` pose (canvas pixels) drawn over black at the output size, where :meth:`frame` puts
+        the person (black, not the plate: the preview stays legible on busy scenes and looks like the label maps
+        the model was conditioned on)."""
+        kp = np.asarray(keypoints, np.float32).copy()
+        kp[:, :2] = self.to_output(kp[:, :2])
+        return draw_pose(np.zeros((self.size[1], self.size[0], 3), np.uint8), kp)
+
+
+def scene_compositor(run_dir: str | os.PathLike, framing: Framing, size: tuple[int, int]) -> Compositor:
+    """The :class:`Compositor` of an appearance model's run (its plate and torso length) for output ``size``."""
+    plate = load_plate(run_dir)
+    poses = Path(run_dir) / POSES_FILE
+    if not poses.is_file():
+        raise DancesynthError(f"{run_dir} has no {POSES_FILE} to size the person's mask by; "
+                              "pass --crop to write the model's crop instead.")
+    return Compositor(framing, plate, size, body_scale(PoseSequence.load(poses)))
