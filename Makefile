@@ -8,9 +8,13 @@ STAMP := $(VENV)/.installed
 MEDIAPIPE := mediapipe==0.10.21
 export NUMBA_CACHE_DIR := $(CURDIR)/$(VENV)/numba-cache
 
-.PHONY: demo test lint install clean
+.PHONY: demo test lint install clean browser
 
-install: $(STAMP)
+install: $(STAMP) browser
+
+# The web page's tests drive Debian's chromium through Playwright, which never downloads a browser.
+browser:
+	command -v chromium >/dev/null || (apt-get update && apt-get install -y chromium)
 
 $(STAMP): pyproject.toml constraints.txt
 	$(PY) -m pip --version >/dev/null 2>&1 || $(PYTHON) -m venv --clear $(VENV)
@@ -20,12 +24,12 @@ $(STAMP): pyproject.toml constraints.txt
 	touch $@
 
 demo: $(STAMP)
-	OMP_NUM_THREADS=1 $(VENV)/bin/dancesynth demo --out demo_output
+	$(VENV)/bin/dancesynth demo --out demo_output
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
-test: lint
+test: lint browser
 	OMP_NUM_THREADS=1 $(PY) -m pytest -q
 
 clean:

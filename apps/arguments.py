@@ -56,6 +56,10 @@ def _checked(kind: type, accept: Callable[[float], bool], says: str, doc: str) -
 
 positive_int = _checked(int, lambda v: v >= 1, "must be positive",
                         "A whole number of at least 1 (epochs, batch size, steps, threads).")
+# 8K: H.264 levels end there, and larger frames of the whole scene would not fit in memory anyway.
+MAX_VIDEO_HEIGHT = 4320
+video_height = _checked(int, lambda v: 16 <= v <= MAX_VIDEO_HEIGHT, f"must be 16 to {MAX_VIDEO_HEIGHT} pixels",
+                        "An output video height in pixels.")
 non_negative_int = _checked(int, lambda v: v >= 0, "must be 0 or more",
                             'A whole number of at least 0 (seeds, worker counts, "0 = off" periods).')
 positive_float = _checked(float, lambda v: v > 0, "must be positive",

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from apps.pipeline import dance
-from dancesynth.core.device import resolve_device
+from dancesynth.core.device import resolve_device, resolve_precision
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
 from dancesynth.core.media import SONG_SAMPLE_RATE, load_song, read_frames
@@ -30,9 +30,9 @@ from stage1_pose.data.make_dataset import make_dataset
 from stage1_pose.generate import generate_dance, load_pose_model
 from stage1_pose.metrics import beat_align_score, beat_coverage, beat_hit_rate
 from stage1_pose.pretrained import DEFAULT_POSE_MODEL
+from stage2_video.cache import train_for
 from stage2_video.models.pix2pixhd import affordable_preset
 from stage2_video.synthetic_person import appearance_preset, write_person_video
-from stage2_video.train import TrainOptions, train_video
 
 logger = logging.getLogger(__name__)
 
@@ -134,11 +134,17 @@ def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, d
     step("synthetic target video")
 
     video_run = out / "runs" / "video"
-    preset = plan.preset if plan.preset != "auto" else affordable_preset(resolve_device(device))
-    if not (video_run / "latest.json").is_file():
-        video_minutes = max(plan.min_train_minutes, (deadline - plan.finish_minutes * 60.0 - time.monotonic()) / 60.0)
-        train_video(target_video, video_run, preset, TrainOptions(minutes=video_minutes), poses=target_poses,
-                    device=device)
+    dev = resolve_device(device)
+    preset = plan.preset if plan.preset != "auto" else affordable_preset(dev, resolve_precision("auto", dev))
+    # The budget is fixed on the first run, so an interrupted demo resumes the training for the minutes it lacks.
+    budget_file = out / "runs" / "video_minutes.json"
+    if not budget_file.is_file():
+        budget_file.parent.mkdir(parents=True, exist_ok=True)
+        minutes_left = (deadline - plan.finish_minutes * 60.0 - time.monotonic()) / 60.0
+        with atomic_path(budget_file) as tmp:
+            tmp.write_text(json.dumps({"minutes": max(plan.min_train_minutes, minutes_left)}))
+    train_for(target_video, video_run, json.loads(budget_file.read_text())["minutes"], preset, device,
+              poses=target_poses)
     step(f"appearance model ({preset})")
 
     clip = liveliest(dataset, dataset.clips("test"))

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dancesynth.core.device import resolve_device
+from dancesynth.core.device import resolve_device, resolve_precision
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import SONG_SAMPLE_RATE, VideoWriter, load_song
 from dancesynth.core.progress import track
@@ -31,6 +31,8 @@ from stage2_video.models.pix2pixhd import affordable_preset
 from stage2_video.render import load_appearance_model, render_frames, target_poses
 from stage2_video.retarget import retarget_onto
 
+# Minutes of appearance training a --target gets in all unless told otherwise.
+DEFAULT_TRAIN_MINUTES = 30.0
 # Method tried first when a folder of several pose-model runs is given without --method.
 DEFAULT_METHOD = "dance_revolution"
 
@@ -100,7 +102,7 @@ def output_size(canvas: tuple[int, int], height: int | None) -> tuple[int, int]:
 
 def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.PathLike | None = None,
           video_model: str | os.PathLike | None = None, target: str | os.PathLike | None = None,
-          cache: str | os.PathLike | None = None, train_minutes: float = 30.0, preset: str = "auto",
+          cache: str | os.PathLike | None = None, train_minutes: float | None = None, preset: str | None = None,
           method: str | None = None, seed: int = 0, start: float = 0.0, duration: float | None = None,
           skeleton_preview: str | os.PathLike | None = None, side_by_side: str | os.PathLike | None = None,
           crop: bool = False, height: int | None = None, precision: str = "auto", device: str = "auto",
@@ -111,8 +113,8 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
         pose_model: a stage-1 run (or folder of runs); None = the pose model shipped with the package.
         video_model, target: the appearance model's run folder, or a video of the person whose model is
             looked up in ``cache`` (default under the user's cache folder) and trained or continued until it
-            has trained ``train_minutes`` in all, at ``preset`` (``auto``: 256 px where the hardware makes it
-            affordable, else 128). Exactly one of the two.
+            has trained ``train_minutes`` in all (default 30), at ``preset`` (default ``auto``: 256 px where the
+            hardware makes it affordable, else 128). Exactly one of the two.
         start, duration: the song segment in seconds (duration None = to the end).
         crop: write the model's crop around the person instead of the whole scene.
         height: output height in pixels (aspect kept); default the target video's own.
@@ -123,12 +125,20 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
     if (video_model is None) == (target is None):
         raise DancesynthError("Give the person to animate either as --target VIDEO or as --video-model RUN, "
                               "not both and not neither.")
+    if video_model is not None and (cache, train_minutes, preset) != (None, None, None):
+        raise DancesynthError("--train-minutes, --cache and --preset apply to --target only; drop them when "
+                              "using --video-model.")
+    if crop and height is not None:
+        raise DancesynthError("--height sizes the whole-scene output and --crop writes the model's crop; "
+                              "use one of them.")
     # Everything fast to check comes before a training that may take minutes.
     segment = song_segment(load_song(song, SONG_SAMPLE_RATE), SONG_SAMPLE_RATE, start, duration)
     pose_model_loaded = load_pose_model(find_pose_run(pose_model, method), device)
     if target is not None:
-        name = preset if preset != "auto" else affordable_preset(resolve_device(device))
-        video_model = appearance_model_for(target, train_minutes, name, cache, device, precision)
+        dev = resolve_device(device)
+        name = preset if preset not in (None, "auto") else affordable_preset(dev, resolve_precision(precision, dev))
+        video_model = appearance_model_for(target, DEFAULT_TRAIN_MINUTES if train_minutes is None else train_minutes,
+                                           name, cache, device, precision)
     poses = generate_dance(pose_model_loaded, segment, SONG_SAMPLE_RATE, seed=seed)
     appearance = load_appearance_model(video_model, device, precision=precision)
     # The video has the target's frame rate; the dance keeps its timing (resampled in seconds, not frames).

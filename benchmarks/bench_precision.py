@@ -33,6 +33,7 @@ import numpy as np
 import openvino
 import torch
 from bench_render import dancing_poses, interleaved_fps, max_step_diff
+from eval_video import held_out_quality
 
 from dancesynth.core.device import cpu_has_bf16, precision_name, resolve_device, resolve_precision
 from dancesynth.core.skeleton import PoseSequence, resample
@@ -102,16 +103,19 @@ def render_rows(size: int, frames: int, rounds: int) -> list[tuple[float, int]]:
     return [(float(np.median(fps)), max_step_diff(plain, fast, poses)) for fps, fast in zip(runs, models)]
 
 
-def held_out_quality(video: Path, poses: Path | None, folder: Path, size: int, minutes: float) -> None:
-    """Train fp32 and auto-precision models for ``minutes`` each on ``video``; print their held-out scores."""
+def compare_precisions(video: Path, poses: Path | None, folder: Path, size: int, minutes: float) -> None:
+    """Train fp32 and auto-precision models for ``minutes`` each on ``video``; print their held-out scores, each
+    rendered in the precision it was trained in (:func:`eval_video.held_out_quality`)."""
     print(f"\nheld-out quality after {minutes:g} min of training each, {size} px, target {video}:")
-    print(f"{'precision':<16}{'steps':>7}{'SSIM':>8}{'PSNR dB':>9}")
+    print(f"{'precision':<16}{'steps':>7}{'SSIM':>8}{'PSNR dB':>9}{'PCK':>7}")
     for name in ("fp32", "auto"):
-        meta = train_video(video, folder / f"ssim_{name}", "small", TrainOptions(minutes=minutes), poses=poses,
-                           device="cpu", overrides={"width": size, "height": size}, precision=name)
+        run = folder / f"ssim_{name}"
+        meta = train_video(video, run, "small", TrainOptions(minutes=minutes), poses=poses, device="cpu",
+                           overrides={"width": size, "height": size}, precision=name)
+        scores = held_out_quality(run, device="cpu", precision=name)
         label = name if name == "fp32" else f"auto = {meta['precision']}"
-        print(f"{label:<16}{meta['step']:>7}{meta['validation']['ssim']:>8.3f}{meta['validation']['psnr']:>9.2f}",
-              flush=True)
+        pck = dict(scores.pck)["generated vs commanded"]
+        print(f"{label:<16}{meta['step']:>7}{scores.ssim:>8.3f}{scores.psnr:>9.2f}{pck:>7.3f}", flush=True)
 
 
 def main() -> None:
@@ -150,7 +154,7 @@ def main() -> None:
         if args.ssim_minutes:
             if args.video is not None:
                 video, poses = args.video, None
-            held_out_quality(video, poses, folder, args.ssim_size, args.ssim_minutes)
+            compare_precisions(video, poses, folder, args.ssim_size, args.ssim_minutes)
 
 
 if __name__ == "__main__":

@@ -28,7 +28,7 @@ from dancesynth.core.media import VideoWriter
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import JOINT_INDEX, PoseSequence
 from stage2_video.data import POSES_FILE, frames_file, split_ranges
-from stage2_video.extract import extract_frames
+from stage2_video.extract import ExtractConfig, extract_frames
 from stage2_video.framing import Framing
 from stage2_video.models.pix2pixhd import Pix2PixHDConfig
 from stage2_video.quality import pck, psnr, ssim
@@ -44,8 +44,13 @@ def framed(seq: PoseSequence, framing: Framing) -> PoseSequence:
 
 
 def extracted(frames: list[np.ndarray], fps: float) -> PoseSequence:
-    """The pose BlazePose finds in ``frames`` (model-image pixels)."""
-    return extract_frames(frames, fps, (frames[0].shape[1], frames[0].shape[0]), progress=False).poses
+    """The pose BlazePose finds in ``frames`` (model-image pixels); frames where it finds nobody score as misses."""
+    size = (frames[0].shape[1], frames[0].shape[0])
+    found = extract_frames(frames, fps, size, ExtractConfig(max_missing_fraction=1.0), progress=False)
+    # Gap filling gives frames without a detection interpolated joints; here they must count as misses.
+    kp = found.poses.keypoints.copy()
+    kp[~found.found, :, 2] = 0.0
+    return found.poses.replace(kp)
 
 
 def without_small_toes(seq: PoseSequence) -> PoseSequence:
@@ -68,12 +73,13 @@ class HeldOut:
     pck: list[tuple[str, float]]
 
 
-def held_out_quality(run_dir: Path, frames: int = 0, device: str = "auto",
-                     ground_truth: Path | None = None) -> HeldOut:
-    """Render the run's held-out frames (the first ``frames``, 0 = all) and score them (see the module doc)."""
+def held_out_quality(run_dir: Path, frames: int = 0, device: str = "auto", ground_truth: Path | None = None,
+                     precision: str = "auto") -> HeldOut:
+    """Render the run's held-out frames (the first ``frames``, 0 = all) in ``precision`` and score them (see the
+    module doc)."""
     meta = load_meta(run_dir, KIND)
     config = config_from_dict(Pix2PixHDConfig, meta["config"])
-    model = load_appearance_model(run_dir, device)
+    model = load_appearance_model(run_dir, device, precision=precision)
     poses = PoseSequence.load(run_dir / POSES_FILE)
     real = np.load(run_dir / frames_file(model.framing), mmap_mode="r")
     _, held_out = split_ranges(len(poses), config.val_fraction)

@@ -7,12 +7,12 @@ The clip is the demo video of the PyPI package ``sports2d`` (BSD-3-Clause, (c) p
     python benchmarks/real_footage.py run --minutes 10 --presets small medium
 
 ``run`` trains (or reuses, through the appearance cache of `dance --target`) one model per preset for
-``--minutes``, then prints per preset: training minutes, held-out SSIM / PSNR at model resolution, PCK@0.1 of
-BlazePose re-extracted from the generated held-out frames against the commanded poses (and from the real frames,
-the ceiling), and the wall time of `dance --target` for a ``--dance-seconds`` segment of a real song with the
-cached model (training excluded, pose extraction of the cached model excluded, rendering and encoding
-included). It writes ``docs/real_footage/<preset>.png``: held-out frames, real | composited into the scene, and
-frames of the dance.
+``--minutes``, then prints per preset: training minutes and steps, held-out SSIM / PSNR at model resolution,
+PCK@0.1 of BlazePose run on the held-out frames of the whole scene (the generated crops composited into it, and
+the real frames, the ceiling) against the commanded poses, and the wall time of `dance --target` for a
+``--dance-seconds`` segment of a real song with the cached model (training excluded; decoding, generation,
+compiling the renderer, rendering, compositing and encoding at the clip's resolution included). It writes
+``docs/real_footage/<preset>.png``: held-out frames, real | composited into the scene, and frames of the dance.
 """
 
 from __future__ import annotations
@@ -27,13 +27,16 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-from eval_video import held_out_quality
+from eval_video import extracted, held_out_quality
 
 from apps.pipeline import dance
+from dancesynth.core.checkpoint import load_meta
 from dancesynth.core.media import read_frames
 from stage2_video.cache import appearance_model_for
 from stage2_video.composite import scene_compositor
+from stage2_video.quality import pck
 from stage2_video.render import load_appearance_model
+from stage2_video.train import KIND
 
 PACKAGE = "sports2d==0.8.34"
 MEMBERS = {"Sports2D/Demo/demo.mp4": "demo.mp4", "sports2d-0.8.34.dist-info/licenses/LICENSE": "LICENSE"}
@@ -59,23 +62,24 @@ def strip(images: list[np.ndarray], height: int = 240) -> np.ndarray:
                                       interpolation=cv2.INTER_AREA) for im in images], axis=1)
 
 
-def contact_sheet(run: Path, clip: Path, held_out, dance_video: Path, out: Path, count: int = 3) -> None:
-    """Rows: real held-out frame | the model's frame composited into the scene; last row: frames of the dance."""
+def scene_frames(run: Path, clip: Path, held_out) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """(real, composited) held-out frames of the whole scene at the clip's resolution."""
     model = load_appearance_model(run, "cpu", optimize=False)
     compositor = scene_compositor(run, model.framing, model.canvas)
-    picks = np.linspace(0, len(held_out.generated) - 1, count).astype(int)
-    wanted = {held_out.frames.start + int(i): int(i) for i in picks}
-    rows = []
-    for t, frame in enumerate(read_frames(clip)):
-        if t in wanted:
-            i = wanted[t]
-            rows.append(strip([frame, compositor.frame(held_out.generated[i], held_out.commanded.keypoints[i])]))
+    reals = [frame for t, frame in enumerate(read_frames(clip)) if t in held_out.frames]
+    composited = [compositor.frame(g, kp) for g, kp in zip(held_out.generated, held_out.commanded.keypoints)]
+    return reals, composited
+
+
+def contact_sheet(reals: list[np.ndarray], composited: list[np.ndarray], dance_video: Path, out: Path,
+                  count: int = 3) -> None:
+    """Rows: real held-out frame | the model's frame composited into the scene; last two rows: frames of the dance."""
+    rows = [strip([reals[i], composited[i]]) for i in np.linspace(0, len(reals) - 1, count).astype(int)]
     dance_frames = list(read_frames(dance_video))
-    row = strip([dance_frames[i] for i in np.linspace(0, len(dance_frames) - 1, 2 * count).astype(int)], 120)
-    width = max(r.shape[1] for r in rows + [row])
-    pad = [np.pad(r, ((0, 0), (0, width - r.shape[1]), (0, 0))) for r in rows + [row]]
+    picks = [dance_frames[i] for i in np.linspace(0, len(dance_frames) - 1, 4).astype(int)]
+    rows += [strip(picks[:2]), strip(picks[2:])]
     out.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(out), cv2.cvtColor(np.concatenate(pad), cv2.COLOR_RGB2BGR))
+    cv2.imwrite(str(out), cv2.cvtColor(np.concatenate(rows), cv2.COLOR_RGB2BGR))
 
 
 def run(args: argparse.Namespace) -> None:
@@ -94,15 +98,20 @@ def run(args: argparse.Namespace) -> None:
             dance(SONG, out, target=clip, cache=args.model_cache, train_minutes=args.minutes, preset=preset,
                   duration=args.dance_seconds, device="cpu")
             dance_s = time.perf_counter() - start
-            contact_sheet(run_dir, clip, held_out, out, args.sheets / f"{preset}.png")
-            pck = dict(held_out.pck)
-            rows.append((preset, trained / 60, held_out.ssim, held_out.psnr, pck["generated vs commanded"],
-                         pck["real frames vs commanded (ceiling)"], dance_s))
+            reals, composited = scene_frames(run_dir, clip, held_out)
+            contact_sheet(reals, composited, out, args.sheets / f"{preset}.png")
+            fps = held_out.commanded.fps
+            scene = [pck(extracted(frames, fps), held_out.commanded) for frames in (composited, reals)]
+            meta = load_meta(run_dir, KIND)
+            rows.append((preset, meta["trained_seconds"] / 60, meta["step"], held_out.ssim, held_out.psnr,
+                         *scene, trained, dance_s))
     print(f"clip {clip}: {args.minutes:g} min per model; dance segment {args.dance_seconds:g} s of {SONG.name}")
-    print(f"{'preset':<8} {'train min':>9} {'SSIM':>6} {'PSNR dB':>8} {'PCK gen':>8} {'PCK real':>9} "
-          f"{'dance s':>8} {'x real time':>11}")
-    for preset, minutes, s, p, pg, pr, d in rows:
-        print(f"{preset:<8} {minutes:9.1f} {s:6.3f} {p:8.2f} {pg:8.3f} {pr:9.3f} {d:8.1f} "
+    print("SSIM / PSNR: held-out frames at model resolution; PCK@0.1: BlazePose on the held-out frames of the whole")
+    print("scene (composited | real, the ceiling) vs the commanded poses; call s: this run's first call (0 if cached)")
+    print(f"{'preset':<8} {'train min':>9} {'steps':>6} {'SSIM':>6} {'PSNR dB':>8} {'PCK gen':>8} {'PCK real':>9} "
+          f"{'call s':>7} {'dance s':>8} {'x real time':>11}")
+    for preset, minutes, steps, s, p, pg, pr, call, d in rows:
+        print(f"{preset:<8} {minutes:9.1f} {steps:6d} {s:6.3f} {p:8.2f} {pg:8.3f} {pr:9.3f} {call:7.0f} {d:8.1f} "
               f"{args.dance_seconds / d:11.2f}")
 
 

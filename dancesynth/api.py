@@ -25,8 +25,8 @@ PathLike = str | os.PathLike
 
 
 def dance(song: PathLike, *, out: PathLike, target: PathLike | None = None, video_model: PathLike | None = None,
-          pose_model: PathLike | None = None, cache: PathLike | None = None, train_minutes: float = 30.0,
-          preset: str = "auto", method: str | None = None, seed: int = 0, start: float = 0.0,
+          pose_model: PathLike | None = None, cache: PathLike | None = None, train_minutes: float | None = None,
+          preset: str | None = None, method: str | None = None, seed: int = 0, start: float = 0.0,
           duration: float | None = None, height: int | None = None, crop: bool = False,
           skeleton_preview: PathLike | None = None, side_by_side: PathLike | None = None,
           precision: str = "auto", device: str = "auto") -> DanceResult:
@@ -37,8 +37,9 @@ def dance(song: PathLike, *, out: PathLike, target: PathLike | None = None, vide
         song: any audio FFmpeg reads (wav, mp3, ogg, m4a, flac, or a video's soundtrack).
         target: a video of the person; their appearance model is taken from ``cache`` (default
             ``~/.cache/dancesynth/appearance``) or trained now until it has trained ``train_minutes`` in all
-            (a later call with more minutes continues it), at ``preset`` (``auto``, ``small`` = 128 px or
-            ``medium`` = 256 px).
+            (default 30; a later call with more minutes continues it), at ``preset`` (default ``auto``,
+            ``small`` = 128 px or ``medium`` = 256 px). ``cache``, ``train_minutes`` and ``preset`` go with
+            ``target`` only.
         video_model: instead of ``target``, a stage-2 run folder (:func:`train_video`).
         pose_model: a stage-1 run folder (:func:`train_pose`) or a folder of runs named by method; None = the
             pose model shipped with dancesynth.

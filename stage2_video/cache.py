@@ -19,7 +19,7 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from dancesynth.core.checkpoint import has_checkpoint, load_meta
+from dancesynth.core.checkpoint import POINTER, has_checkpoint, load_meta, run_file_contents
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
 from dancesynth.core.media import probe_video
@@ -62,9 +62,11 @@ def read_entry(path: Path) -> CacheEntry | None:
     if not has_checkpoint(path):
         return None
     meta = load_meta(path, KIND)
-    source = json.loads((path / SOURCE_FILE).read_text()) if (path / SOURCE_FILE).is_file() else {}
-    return CacheEntry(path, source.get("video_sha256", ""), source.get("preset", ""),
-                      float(meta.get("trained_seconds", 0.0)), int(meta["epoch"]) >= int(meta["total_epochs"]))
+    with run_file_contents(path / SOURCE_FILE):
+        source = json.loads((path / SOURCE_FILE).read_text()) if (path / SOURCE_FILE).is_file() else {}
+    with run_file_contents(path / POINTER):
+        return CacheEntry(path, source.get("video_sha256", ""), source.get("preset", ""),
+                          float(meta.get("trained_seconds", 0.0)), int(meta["epoch"]) >= int(meta["total_epochs"]))
 
 
 def list_entries(cache: str | os.PathLike | None = None) -> list[CacheEntry]:
@@ -104,9 +106,22 @@ def check_target_video(video: Path) -> None:
                               f"{MIN_TARGET_SECONDS:g} s that shows the person moving.")
 
 
+def train_for(video: str | os.PathLike, run_dir: str | os.PathLike, minutes: float, preset: str = "small",
+              device: str = "auto", precision: str = "auto", poses: str | os.PathLike | None = None) -> None:
+    """Train the run ``run_dir`` until it has trained ``minutes`` in all (every call together): start it, resume
+    it for the minutes it lacks (e.g. after an interruption), or leave it when done or trained to its last epoch.
+    ``poses``: a pose file of ``video`` to use instead of extracting (see :func:`train_video`)."""
+    entry = read_entry(Path(run_dir))
+    if _done(entry, minutes):
+        return
+    trained = entry.trained_seconds if entry is not None else 0.0
+    train_video(video, run_dir, preset, TrainOptions(minutes=minutes - trained / 60), resume=entry is not None,
+                poses=poses, device=device, precision=precision)
+
+
 def appearance_model_for(video: str | os.PathLike, minutes: float, preset: str = "small",
-                         cache: str | os.PathLike | None = None, device: str = "auto", precision: str = "auto",
-                         overrides: dict | None = None) -> Path:
+                         cache: str | os.PathLike | None = None, device: str = "auto",
+                         precision: str = "auto") -> Path:
     """The run folder of a model of the person in ``video`` trained for at least ``minutes`` (all calls
     together): found in the cache, trained now, or resumed for the minutes it lacks."""
     video = Path(video)
@@ -114,15 +129,11 @@ def appearance_model_for(video: str | os.PathLike, minutes: float, preset: str =
     path = entry_path(video, preset, cache)
     if _done(read_entry(path), minutes):
         return path
+    # Another process may train it in the meantime: the lock waits for nobody, and train_for looks again.
     with _locked(path):
-        entry = read_entry(path)  # another process may have trained it in the meantime
-        if _done(entry, minutes):
-            return path
-        trained = entry.trained_seconds if entry is not None else 0.0
         if not (path / SOURCE_FILE).is_file():
             with atomic_path(path / SOURCE_FILE) as tmp:
                 tmp.write_text(json.dumps({"video_sha256": video_digest(video), "video": str(video.resolve()),
                                            "preset": preset}, indent=2))
-        train_video(video, path, preset, TrainOptions(minutes=minutes - trained / 60),
-                    resume=entry is not None, device=device, precision=precision, overrides=overrides)
+        train_for(video, path, minutes, preset, device, precision)
     return path

@@ -31,6 +31,8 @@ from dancesynth.core.skeleton import PoseSequence
 from stage2_video.framing import Framing, label_map
 
 POSES_FILE = "poses.npz"
+# A target video's person must score this many times any other person's prominence when first found.
+TARGET_MIN_LEAD = 1.25
 KEY_SUFFIX = ".key"
 
 
@@ -110,8 +112,11 @@ def load_or_extract_poses(video: Path, run_dir: Path, poses: Path | None) -> Pos
     elif _is_cached(cache, key):
         return PoseSequence.load(cache)
     else:
-        from stage2_video.extract import extract_poses  # mediapipe is heavy; import only when extracting
-        seq = extract_poses(video).poses
+        # mediapipe is heavy; import only when extracting
+        from stage2_video.extract import ExtractConfig, extract_poses
+        from stage2_video.tracking import TrackerConfig
+
+        seq = extract_poses(video, ExtractConfig(tracker=TrackerConfig(min_lead=TARGET_MIN_LEAD))).poses
     with _rebuilding(cache, key):
         seq.save(cache)
     return seq

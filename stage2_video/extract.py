@@ -220,7 +220,7 @@ def extract_poses(video: str | os.PathLike, config: ExtractConfig | None = None,
 
 def extract_frames(frames: Iterable[np.ndarray], fps: float, size: tuple[int, int],
                    config: ExtractConfig | None = None, progress: bool = True, total: int | None = None,
-                   source: str = "the frames") -> Extraction:
+                   source: str = "the input") -> Extraction:
     """:func:`extract_poses` on decoded frames (RGB uint8 ``[height, width, 3]``, ``size = (width, height)``).
 
     Used where frames are already in memory (e.g. generated frames), so no lossy re-encoding blurs thin limbs.
@@ -239,7 +239,7 @@ def extract_frames(frames: Iterable[np.ndarray], fps: float, size: tuple[int, in
     found = np.array(found, bool)
     missing = 1.0 - found.mean() if len(found) else 1.0
     if missing > config.max_missing_fraction:
-        raise DancesynthError(f"No person was found in {missing:.0%} of the frames of {source}; "
+        raise DancesynthError(f"No person was found in {missing:.0%} of the frames in {source}; "
                               "use a video where one person is fully visible.")
     seq = PoseSequence(np.stack(raw), fps, size[0], size[1])
     seq = smooth(interpolate_missing(seq), config.smoothing)

@@ -1,4 +1,4 @@
-"""Bone-length retargeting: a dance moved onto the target person's own skeleton (issue 22, item 4).
+"""Bone-length retargeting: a dance moved onto the target person's own skeleton.
 
 Every bone of :data:`~dancesynth.core.skeleton.BODY25_LIMBS` keeps its direction in every frame and gets the
 target's length, so every joint angle of the dance is unchanged while limbs that stage 1 stretched come out at

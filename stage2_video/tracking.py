@@ -147,8 +147,9 @@ class TrackerConfig:
         lost_drift: extra neck displacement allowed per missing frame, in torso lengths.
         reacquire_after: consecutive missing frames before the whole frame is searched again.
         max_people: most people looked for by a whole-frame search.
-        min_lead: when the target is first chosen, its :func:`target_score` must exceed every other person's by
-            this factor; otherwise whom to follow is a guess and extraction stops with an error.
+        min_lead: when set, the target's :func:`target_score` must exceed every other person's by this factor
+            when it is first chosen; otherwise whom to follow is a guess and extraction stops with an error (set
+            for a target person's video, where following the wrong one would teach the wrong appearance).
     """
 
     crop_margin: float = 1.6
@@ -157,7 +158,7 @@ class TrackerConfig:
     lost_drift: float = 0.2
     reacquire_after: int = 5
     max_people: int = 4
-    min_lead: float = 1.25
+    min_lead: float | None = None
 
 
 @dataclass
@@ -263,7 +264,8 @@ class PersonTracker:
 
     def _check_lead(self, people: list[np.ndarray]) -> None:
         scores = sorted((target_score(p, self.width, self.height) for p in people), reverse=True)
-        if len(scores) > 1 and scores[0] < self.config.min_lead * scores[1]:
+        lead = self.config.min_lead
+        if lead is not None and len(scores) > 1 and scores[0] < lead * scores[1]:
             raise DancesynthError(f"The video shows {len(scores)} people of about the same size near the centre, "
                                   "so it is unclear whom to learn; crop or trim it so that one person stands out.")
 

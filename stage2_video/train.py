@@ -32,7 +32,8 @@ from dancesynth.core.config import config_from_dict, config_to_dict
 from dancesynth.core.device import precision_name, resolve_device, resolve_precision
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
-from dancesynth.core.progress import track
+from dancesynth.core.interrupts import StopRequest, deferred_interrupts
+from dancesynth.core.progress import Progress, track
 from dancesynth.core.runs import RunFolder
 from stage2_video.composite import cache_plate
 from stage2_video.data import (
@@ -170,6 +171,21 @@ class VideoTrainer:
         else:
             bar = track(total=self.total_epochs, initial=self.epoch, desc="epochs", unit="epoch",
                         disable=self.rank != 0)
+        # One process only: ranks of a multi-process run would stop at different steps and hang in a collective.
+        with deferred_interrupts(enabled=self.world == 1) as stop:
+            self._loop(deadline, last_step, start, trained_before, bar, stop)
+        bar.close()
+        if stop.requested:
+            # Ctrl-C or SIGTERM between two steps: the minutes trained are kept, quickly (no validation).
+            self.checkpoint(validate=False)
+            raise KeyboardInterrupt
+        self.write_samples()
+        meta = self.checkpoint()
+        self.folder.close()
+        return meta
+
+    def _loop(self, deadline: float, last_step: float, start: float, trained_before: float, bar: Progress,
+              stop: StopRequest) -> None:
         out_of_time = False
         while self.epoch < self.total_epochs and not out_of_time:
             for g in (*self.opt_g.param_groups, *self.opt_d.param_groups):
@@ -191,18 +207,13 @@ class VideoTrainer:
                     self.write_samples()
                 if self.step % self.options.checkpoint_every == 0:
                     self.checkpoint()
-                if time.monotonic() >= deadline or self.step >= last_step:
+                if time.monotonic() >= deadline or self.step >= last_step or stop.requested:
                     out_of_time = True
                     break
             if not out_of_time:
                 self.epoch, self.position = self.epoch + 1, 0
                 if not self.options.minutes:
                     bar.update(1)
-        bar.close()
-        self.write_samples()
-        meta = self.checkpoint()
-        self.folder.close()
-        return meta
 
     # --- outputs (rank 0 only) ------------------------------------------------------------------------------
     def _log(self, losses: dict[str, float], seconds: float) -> None:
@@ -263,11 +274,11 @@ class VideoTrainer:
     def optimizers(self) -> dict[str, torch.optim.Optimizer]:
         return {"g": self.opt_g, "d": self.opt_d}
 
-    def checkpoint(self) -> dict:
-        """Append held-out SSIM/PSNR to validation.csv (rank 0), then save weights + meta + optimizer/RNG
-        state (every rank) and redraw losses.png."""
+    def checkpoint(self, validate: bool = True) -> dict:
+        """Append held-out SSIM/PSNR to validation.csv (rank 0; unless not ``validate``), then save weights +
+        meta + optimizer/RNG state (every rank) and redraw losses.png."""
         meta = self.meta()
-        if self.folder.writer:
+        if self.folder.writer and validate:
             meta["validation"] = self.validate()
             self.folder.log("validation", {"step": self.step, "epoch": self.epoch, **meta["validation"]})
         self.folder.save(self.model, meta, self.optimizers(), {"scaler": self.scaler.state_dict()})

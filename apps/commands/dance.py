@@ -13,7 +13,7 @@ from apps.arguments import (
     output_file,
     output_folder,
     positive_float,
-    positive_int,
+    video_height,
 )
 
 NAME = "dance"
@@ -49,12 +49,12 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     who.add_argument("--target", type=existing_file, metavar="VIDEO",
                      help="video of the person to animate (their appearance model is cached or trained now)")
     who.add_argument("--video-model", metavar="RUN", help="stage-2 run folder (from train-video)")
-    p.add_argument("--train-minutes", type=positive_float, default=30.0, metavar="M",
+    p.add_argument("--train-minutes", type=positive_float, default=None, metavar="M",
                    help="with --target: minutes of appearance training in all (default 30); more continues "
                         "the cached model")
     p.add_argument("--cache", type=output_folder, default=None, metavar="DIR",
                    help="with --target: appearance-model cache (default ~/.cache/dancesynth/appearance)")
-    p.add_argument("--preset", choices=("auto", "small", "medium"), default="auto",
+    p.add_argument("--preset", choices=("auto", "small", "medium"), default=None,
                    help="with --target: appearance model size, small = 128 px, medium = 256 px; auto = medium on "
                         "GPUs and bf16 CPUs, small elsewhere")
     p.add_argument("--pose-model", default=None, metavar="RUN",
@@ -68,8 +68,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="segment start in seconds (default 0)")
     p.add_argument("--duration", type=positive_float, default=None, metavar="D",
                    help="segment length in seconds (default: to the end of the song)")
-    p.add_argument("--height", type=positive_int, default=None, metavar="H",
-                   help="output height in pixels, aspect kept (default: the target video's)")
+    p.add_argument("--height", type=video_height, default=None, metavar="H",
+                   help="output height in pixels, aspect kept, rounded up to even (default: the target video's)")
     p.add_argument("--crop", action="store_true",
                    help="write the model's square crop around the person instead of the whole scene")
     p.add_argument("--skeleton-preview", type=output_file, default=None, metavar="PATH",

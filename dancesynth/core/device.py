@@ -29,19 +29,28 @@ def resolve_device(name: str = "auto") -> torch.device:
 
 
 @functools.cache
-def cpu_has_bf16() -> bool:
-    """Whether this CPU has AMX-BF16 or AVX-512-BF16 instructions (read once from Linux's /proc/cpuinfo;
-    False on other systems)."""
+def cpu_flags() -> frozenset[str]:
+    """This CPU's feature flags (read once from Linux's /proc/cpuinfo; empty on other systems)."""
     if not sys.platform.startswith("linux"):
-        return False
+        return frozenset()
     try:
         text = Path("/proc/cpuinfo").read_text()
     except OSError:
-        return False
+        return frozenset()
     for line in text.splitlines():
         if line.startswith("flags"):
-            return not BF16_CPU_FLAGS.isdisjoint(line.partition(":")[2].split())
-    return False
+            return frozenset(line.partition(":")[2].split())
+    return frozenset()
+
+
+def cpu_has_bf16() -> bool:
+    """Whether this CPU has AMX-BF16 or AVX-512-BF16 instructions."""
+    return not BF16_CPU_FLAGS.isdisjoint(cpu_flags())
+
+
+def cpu_has_amx() -> bool:
+    """Whether this CPU has AMX bfloat16 tile instructions (Xeon Sapphire Rapids and later)."""
+    return "amx_bf16" in cpu_flags()
 
 
 def resolve_precision(name: str, device: torch.device) -> torch.dtype:

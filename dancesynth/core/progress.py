@@ -116,7 +116,7 @@ class Progress(Generic[T]):
 
 
 def track(iterable: Iterable[T] | None = None, *, total: int | None = None, desc: str = "", unit: str = "it",
-             initial: int = 0, disable: bool = False, leave: bool = True, interval_s: float = LOG_INTERVAL_S,
+             initial: int = 0, disable: bool = False, leave: bool = True, interval_s: float | None = None,
              clock: Callable[[], float] = time.monotonic, tty: bool | None = None) -> Progress[T]:
     """Report progress over ``iterable`` (or over ``update`` calls when it is None).
 
@@ -127,13 +127,15 @@ def track(iterable: Iterable[T] | None = None, *, total: int | None = None, desc
         initial: units already done (a resumed loop).
         disable: report nothing (e.g. on non-zero ranks of a multi-process run).
         leave: keep the finished bar on the terminal.
-        interval_s: at most one log line per this many seconds when not on a terminal.
+        interval_s: at most one log line per this many seconds when not on a terminal (default
+            :data:`LOG_INTERVAL_S`, read at each call so a process such as the web worker can shorten it).
         clock: seconds, monotonic (tests pass a fake one).
         tty: draw a bar (True) or log lines (False); default: whether stderr is a terminal.
     """
     if total is None and iterable is not None and hasattr(iterable, "__len__"):
         total = len(iterable)  # type: ignore[arg-type]
     quiet = disable or not logger.isEnabledFor(logging.INFO)
+    interval_s = LOG_INTERVAL_S if interval_s is None else interval_s
     bar = None
     if tty if tty is not None else sys.stderr.isatty():
         from tqdm import tqdm

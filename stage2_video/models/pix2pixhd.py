@@ -15,7 +15,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-from dancesynth.core.device import cpu_has_bf16
+from dancesynth.core.device import cpu_has_amx
 from dancesynth.core.errors import DancesynthError
 
 LABEL_CHANNELS = 3
@@ -84,11 +84,14 @@ PRESETS: dict[str, Pix2PixHDConfig] = {
 }
 
 
-def affordable_preset(device: torch.device) -> str:
-    """The largest preset that trains in minutes on ``device``: ``medium`` (256 px) on GPUs and on CPUs with
-    bfloat16 instructions (AMX / AVX-512-BF16, where bf16 autocast speeds training up), ``small`` (128 px)
-    elsewhere."""
-    return "medium" if device.type == "cuda" or (device.type == "cpu" and cpu_has_bf16()) else "small"
+def affordable_preset(device: torch.device, precision: torch.dtype) -> str:
+    """The largest preset that trains well in minutes on ``device`` computing in ``precision``
+    (:func:`dancesynth.core.device.resolve_precision`): ``medium`` (256 px) on GPUs and on CPUs with AMX computing
+    in bf16, ``small`` (128 px) elsewhere. On a 2-core AVX-512-BF16 CPU without AMX a 256-px step in bf16 took
+    4.2 s against 1.7 s at 128 px: in 8 minutes 113 steps (held-out SSIM 0.39) against 278 (SSIM 0.89)."""
+    if device.type == "cuda":
+        return "medium"
+    return "medium" if precision == torch.bfloat16 and cpu_has_amx() else "small"
 
 
 def preset(name: str, **overrides) -> Pix2PixHDConfig:

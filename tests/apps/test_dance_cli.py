@@ -127,6 +127,9 @@ def test_bad_inputs_are_one_sentence_errors_and_leave_no_file(models, tmp_path, 
         ([str(song), "--pose-model", str(pose_run)], "one of the arguments --target --video-model is required"),
         ([str(song), "--target", str(song), "--video-model", str(video_run)], "not allowed with"),
         ([str(song), "--method", "ren", "--video-model", str(video_run)], "built-in pose model is dance_revolution"),
+        ([str(song), "--video-model", str(video_run), "--train-minutes", "5"], "apply to --target only"),
+        ([str(song), "--video-model", str(video_run), "--crop", "--height", "64"], "use one of them"),
+        ([str(song), "--video-model", str(video_run), "--height", "10"], "must be 16 to 4320"),
     ]
     for args, words in cases:
         assert main(["dance", *args, "--out", str(out)]) == 1

@@ -2,7 +2,7 @@ import pytest
 import torch
 
 from dancesynth.core import device as device_module
-from dancesynth.core.device import cpu_has_bf16, resolve_precision
+from dancesynth.core.device import cpu_flags, cpu_has_amx, cpu_has_bf16, resolve_precision
 from dancesynth.core.errors import DancesynthError
 
 CPU, CUDA = torch.device("cpu"), torch.device("cuda")
@@ -47,9 +47,9 @@ def test_unknown_or_unavailable_precisions_are_user_errors(cpu_bf16):
 @pytest.fixture
 def fresh_detection():
     """Forgets the cached CPU detection before and after the test, so a fake /proc/cpuinfo stays in it."""
-    cpu_has_bf16.cache_clear()
+    cpu_flags.cache_clear()
     yield
-    cpu_has_bf16.cache_clear()
+    cpu_flags.cache_clear()
 
 
 def test_cpu_flags_are_read_from_cpuinfo(monkeypatch, tmp_path, fresh_detection):
@@ -57,10 +57,11 @@ def test_cpu_flags_are_read_from_cpuinfo(monkeypatch, tmp_path, fresh_detection)
     monkeypatch.setattr(device_module.sys, "platform", "linux")
     real_path = device_module.Path
     monkeypatch.setattr(device_module, "Path", lambda p: cpuinfo if p == "/proc/cpuinfo" else real_path(p))
-    for flags, expected in (("fpu avx2 avx512f", False), ("fpu avx512f avx512_bf16", True), ("fpu amx_bf16", True)):
+    for flags, bf16, amx in (("fpu avx2 avx512f", False, False), ("fpu avx512f avx512_bf16", True, False),
+                             ("fpu amx_bf16", True, True)):
         cpuinfo.write_text(f"processor\t: 0\nflags\t\t: {flags}\n")
-        cpu_has_bf16.cache_clear()
-        assert cpu_has_bf16() is expected, flags
+        cpu_flags.cache_clear()
+        assert (cpu_has_bf16(), cpu_has_amx()) == (bf16, amx), flags
     monkeypatch.setattr(device_module.sys, "platform", "darwin")
-    cpu_has_bf16.cache_clear()
+    cpu_flags.cache_clear()
     assert cpu_has_bf16() is False

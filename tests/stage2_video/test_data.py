@@ -47,7 +47,7 @@ def test_cached_poses_serve_only_their_own_video(tmp_path, two_videos, monkeypat
     _prepare(a, run, poses_file)
     extracted = []
 
-    def fake_extract(video):
+    def fake_extract(video, config=None):
         extracted.append(video)
         raise RuntimeError("extraction reached")
 

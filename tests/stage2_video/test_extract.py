@@ -103,7 +103,7 @@ def test_frames_in_memory_give_poses_on_their_canvas(astronaut):
     expected = np.array([(20 + 10 * t, 30) for t in range(4)]) + np.array(ASTRONAUT_EXPECTED["Nose"]) * 200 / 512
     # Within one eye distance (17 px at this size): tracking mode put one frame's nose 11 px low (measured).
     assert np.abs(poses.keypoints[:, J["Nose"], :2] - expected).max() < 15
-    with pytest.raises(DancesynthError, match="No person was found in 100% of the frames of the frames"):
+    with pytest.raises(DancesynthError, match="No person was found in 100% of the frames in the input"):
         extract_frames([np.full((120, 160, 3), 90, np.uint8)] * 3, 10, (160, 120), progress=False)
 
 
@@ -134,7 +134,7 @@ def test_video_without_person_raises_clear_error(tmp_path):
     frames = [np.clip(gradient + rng.integers(0, 40, gradient.shape), 0, 255).astype(np.uint8) for _ in range(4)]
     video = tmp_path / "empty.mp4"
     write_video(video, frames, 10)
-    with pytest.raises(DancesynthError, match=r"No person was found in 100% of the frames of .*empty\.mp4; "
+    with pytest.raises(DancesynthError, match=r"No person was found in 100% of the frames in .*empty\.mp4; "
                                               r"use a video where one person is fully visible"):
         extract_poses(video, progress=False)
 

@@ -50,13 +50,12 @@ def test_lsgan_and_feature_matching_losses():
     assert feature_matching_loss(real, real, n_layers=3, weight=10.0).item() == 0.0
 
 
-def test_vgg_off_with_visible_notice(capsys, monkeypatch):
+def test_vgg_off_with_visible_notice(caplog, monkeypatch):
     import stage2_video.vgg as vgg
     monkeypatch.setattr(vgg, "_notice_shown", False)
     assert build_vgg_loss(None) is None
     assert build_vgg_loss(None) is None
-    err = capsys.readouterr().err
-    assert err.count(NOTICE) == 1
+    assert [r.getMessage() for r in caplog.records if r.levelname == "WARNING"].count(NOTICE) == 1
 
 
 def test_vgg_loads_local_weights(tmp_path):
@@ -70,3 +69,14 @@ def test_vgg_loads_local_weights(tmp_path):
     assert loss(x, -x).item() > 0
     with pytest.raises(DancesynthError, match="does not exist"):
         build_vgg_loss(tmp_path / "missing.pth")
+
+
+def test_256_px_where_the_hardware_affords_it(monkeypatch):
+    from stage2_video.models import pix2pixhd
+
+    cpu, gpu = torch.device("cpu"), torch.device("cuda")
+    for amx, precision, expected in ((True, torch.bfloat16, "medium"), (True, torch.float32, "small"),
+                                     (False, torch.bfloat16, "small"), (False, torch.float32, "small")):
+        monkeypatch.setattr(pix2pixhd, "cpu_has_amx", lambda amx=amx: amx)
+        assert pix2pixhd.affordable_preset(cpu, precision) == expected, (amx, precision)
+    assert pix2pixhd.affordable_preset(gpu, torch.float16) == "medium"

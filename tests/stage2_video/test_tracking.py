@@ -5,7 +5,7 @@ import pytest
 
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import JOINT_INDEX
-from stage2_video.tracking import Box, PersonTracker, choose_target, find_people, pose_box, torso
+from stage2_video.tracking import Box, PersonTracker, TrackerConfig, choose_target, find_people, pose_box, torso
 
 J = JOINT_INDEX
 W, H = 640, 360
@@ -116,8 +116,11 @@ def test_crop_follows_the_target_so_a_bigger_person_outside_it_is_never_taken():
 
 def test_two_equally_prominent_people_are_refused_one_clear_target_is_not():
     twins = [[person(250, 150, 60), person(390, 150, 60)]]
+    target_video = TrackerConfig(min_lead=1.25)
     with pytest.raises(DancesynthError, match="people of about the same size"):
-        PersonTracker(ScriptedEstimator(twins), W, H).step(frame(0))
+        PersonTracker(ScriptedEstimator(twins), W, H, target_video).step(frame(0))
     # A third bigger than the other: clearly the dancer.
     clear = [[person(250, 150, 60), person(390, 150, 80)]]
-    assert PersonTracker(ScriptedEstimator(clear), W, H).step(frame(0)) is clear[0][1]
+    assert PersonTracker(ScriptedEstimator(clear), W, H, target_video).step(frame(0)) is clear[0][1]
+    # Elsewhere (extract-poses, prepare) the likelier one is followed.
+    assert PersonTracker(ScriptedEstimator(twins), W, H).step(frame(0)) is not None

@@ -1,0 +1,438 @@
+"""The web app's HTTP side: the page (``static/``) and a JSON API over uploads, built-in songs, cached
+appearance models and jobs (:mod:`apps.web.jobs`).
+
+```
+GET  /                              the page            GET  /api/config          limits the page checks first
+POST /api/uploads (file, kind)      a song or a video   GET  /api/songs           built-in songs (made on first use)
+GET  /api/models                    cached appearance models, with held-out SSIM and training time
+GET  /api/models/{name}/losses      the model's loss curves (losses.csv)   .../sample: its latest sample image
+POST /api/jobs {kind, ...}          queue a dance, train, preview or demo job
+GET  /api/jobs, /api/jobs/{id}      state, queue position, progress     POST /api/jobs/{id}/cancel
+GET  /api/jobs/{id}/files/{name}    an output (?download=1: as an attachment)
+```
+
+Bad input answers ``{"error": sentence}`` with status 400 (413 for an upload over the size limit), the
+:class:`~dancesynth.core.errors.DancesynthError` sentence the CLI would print.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import csv
+import json
+import logging
+import re
+import shlex
+import shutil
+import threading
+import uuid
+from pathlib import Path
+
+from fastapi import FastAPI, Form, Request, UploadFile
+from fastapi.responses import FileResponse, JSONResponse
+from fastapi.staticfiles import StaticFiles
+
+from apps.web.jobs import JobStore
+from apps.web.tasks import user_message
+from dancesynth.core.errors import DancesynthError
+
+logger = logging.getLogger(__name__)
+
+STATIC = Path(__file__).parent / "static"
+UPLOADS = "uploads"
+UPLOAD_META = "upload.json"
+SONGS = "songs"
+# Built-in songs: a few, short enough to be made in seconds on first use.
+BUILTIN_SONGS, BUILTIN_SECONDS = 3, 30.0
+# Any seed but 0: the shipped pose model learnt dataset seed 0's songs, so these are new to it.
+BUILTIN_SEED = 1
+SONG_CHECK_RATE = 8000  # Hz: enough to check that a file holds audible sound, and fast
+PRESETS = ("auto", "small", "medium")
+NO_CACHE = {"Cache-Control": "no-store"}
+CHUNK = 1 << 20
+
+
+@contextlib.contextmanager
+def _no_error_paths(data: Path):
+    """Turn a DancesynthError raised inside into one whose sentence names uploads by their own file name."""
+    try:
+        yield
+    except DancesynthError as e:
+        raise DancesynthError(user_message(str(e), data)) from e
+
+
+def _safe_name(name: str) -> str:
+    """The uploaded file's name reduced to characters safe in a path (its extension kept)."""
+    stem, dot, ext = Path(name or "upload").name.rpartition(".")
+    stem, ext = (stem, ext) if dot else (ext, "")
+    clean = lambda s, n: re.sub(r"[^A-Za-z0-9_-]+", "_", s)[:n].strip("_")
+    return (clean(stem, 60) or "upload") + (f".{clean(ext, 10)}" if clean(ext, 10) else "")
+
+
+def _number(body: dict, key: str, default: float | None, low: float, high: float, what: str,
+            integer: bool = False) -> float | None:
+    value = body.get(key, default)
+    if value is None or value == "":
+        return default
+    try:
+        value = int(value) if integer else float(value)
+    except (TypeError, ValueError):
+        raise DancesynthError(f"The {what} must be a number, got {value!r}.") from None
+    if not low <= value <= high:
+        raise DancesynthError(f"The {what} must be between {low:g} and {high:g}, got {value:g}.")
+    return value
+
+
+class WebApp:
+    """What the routes share: the data folder, the cache, the limits and the job store."""
+
+    def __init__(self, data: Path, cache: Path | None, device: str, max_upload_mb: float,
+                 max_song_minutes: float) -> None:
+        from stage2_video.cache import default_cache_dir
+
+        self.data = Path(data).resolve()
+        self.cache = Path(cache).resolve() if cache is not None else default_cache_dir()
+        self.device = device
+        self.max_upload_mb = max_upload_mb
+        self.max_song_minutes = max_song_minutes
+        self.jobs = JobStore(self.data, {"data": str(self.data), "cache": str(self.cache), "device": device})
+        self._songs_lock = threading.Lock()
+
+    # --- uploads -----------------------------------------------------------------------------------------
+    def too_big(self, name: str, size: int) -> DancesynthError:
+        return DancesynthError(f"{name} is {size / 2**20:.0f} MB, over this server's upload limit of "
+                               f"{self.max_upload_mb:g} MB; use a shorter file or start the server with a larger "
+                               "--max-upload-mb.")
+
+    def save_upload(self, file: UploadFile, kind: str) -> dict:
+        """Store an upload under ``DATA/uploads/<id>/`` after checking it is a song or a video of a person's
+        length; a file that fails the check is deleted."""
+        if kind not in ("song", "video"):
+            raise DancesynthError(f"Unknown upload kind {kind!r}; choose song or video.")
+        name = _safe_name(file.filename or "")
+        folder = self.data / UPLOADS / uuid.uuid4().hex[:12]
+        folder.mkdir(parents=True)
+        path, size, limit = folder / name, 0, self.max_upload_mb * 2**20
+        try:
+            with open(path, "wb") as f:
+                while chunk := file.file.read(CHUNK):
+                    size += len(chunk)
+                    if size > limit:
+                        raise self.too_big(file.filename or name, size)
+                    f.write(chunk)
+            if size == 0:
+                raise DancesynthError(f"{name} is empty (0 bytes); upload a complete file.")
+            with _no_error_paths(self.data):
+                duration = self._check_song(path) if kind == "song" else self._check_video(path)
+        except BaseException:
+            shutil.rmtree(folder, ignore_errors=True)
+            raise
+        meta = {"id": folder.name, "kind": kind, "name": name, "duration": duration, "size": size}
+        (folder / UPLOAD_META).write_text(json.dumps(meta))
+        return meta
+
+    def _check_song(self, path: Path) -> float:
+        from dancesynth.core.media import load_song
+
+        seconds = len(load_song(path, SONG_CHECK_RATE)) / SONG_CHECK_RATE
+        if seconds > 60 * self.max_song_minutes:
+            raise DancesynthError(f"{path.name} lasts {seconds / 60:.1f} min, over this server's limit of "
+                                  f"{self.max_song_minutes:g} min; cut the part you want to dance to, or start the "
+                                  "server with a larger --max-song-minutes.")
+        return seconds
+
+    def _check_video(self, path: Path) -> float:
+        from dancesynth.core.media import probe_video
+        from stage2_video.cache import check_target_video
+
+        check_target_video(path)
+        return probe_video(path).duration
+
+    def upload(self, upload_id: str, kind: str) -> dict:
+        meta_file = self.data / UPLOADS / upload_id / UPLOAD_META
+        if not re.fullmatch(r"[0-9a-f]{12}", upload_id or "") or not meta_file.is_file():
+            raise DancesynthError(f"No uploaded {kind} {upload_id!r} on this server; upload it again.")
+        meta = json.loads(meta_file.read_text())
+        if meta["kind"] != kind:
+            raise DancesynthError(f"{meta['name']} was uploaded as a {meta['kind']}, not a {kind}; upload it again.")
+        return {**meta, "path": str(meta_file.parent / meta["name"])}
+
+    # --- built-in songs and cached models ----------------------------------------------------------------
+    def songs(self) -> list[dict]:
+        """The built-in songs, made into ``DATA/songs`` on first use."""
+        from stage1_pose.data.make_dataset import make_dataset
+
+        root = self.data / SONGS
+        with self._songs_lock:
+            if not (root / "manifest.json").is_file():
+                shutil.rmtree(root, ignore_errors=True)  # what an interrupted first use left
+                make_dataset(root, clips=BUILTIN_SONGS, seconds=BUILTIN_SECONDS, seed=BUILTIN_SEED, workers=1,
+                             progress=False)
+        songs = []
+        for clip in json.loads((root / "manifest.json").read_text())["clips"]:
+            tempo = json.loads((root / clip["beats"]).read_text()).get("tempo")
+            songs.append({"id": f"builtin:{clip['id']}", "name": f"{clip['style']} ({tempo:.0f} BPM, "
+                          f"{BUILTIN_SECONDS:g} s)", "path": str(root / clip["audio"]), "duration": BUILTIN_SECONDS})
+        return songs
+
+    def song(self, song_id: str) -> dict:
+        if str(song_id).startswith("builtin:"):
+            for song in self.songs():
+                if song["id"] == song_id:
+                    return song
+            raise DancesynthError(f"There is no built-in song {song_id!r}; pick one from the list.")
+        if not song_id:
+            raise DancesynthError("Choose a song: upload one or pick a built-in one.")
+        return self.upload(song_id, "song")
+
+    def model_path(self, name: str) -> Path:
+        from dancesynth.core.checkpoint import has_checkpoint
+
+        path = self.cache / str(name)
+        if not re.fullmatch(r"[0-9a-f]{24}-\w+", str(name)) or not path.is_dir():
+            raise DancesynthError(f"There is no appearance model {name!r} in the cache {self.cache}; pick one "
+                                  "from the list.")
+        if not has_checkpoint(path) and not (path / "losses.csv").is_file():
+            raise DancesynthError(f"The appearance model {name} has not trained yet; train it first.")
+        return path
+
+    def models(self) -> list[dict]:
+        from dancesynth.core.checkpoint import load_meta
+        from stage2_video.cache import SOURCE_FILE, list_entries
+
+        models = []
+        for entry in list_entries(self.cache):
+            meta = load_meta(entry.path, "stage2")
+            source = entry.path / SOURCE_FILE
+            video = json.loads(source.read_text()).get("video", "") if source.is_file() else meta.get("video", "")
+            validation = meta.get("validation") or {}
+            models.append({"name": entry.path.name, "preset": entry.preset, "video": Path(video).name,
+                           "video_path": video, "trained_seconds": entry.trained_seconds, "finished": entry.finished,
+                           "ssim": validation.get("ssim"), "psnr": validation.get("psnr"), "step": meta.get("step"),
+                           "size": [meta["config"].get("width"), meta["config"].get("height")]})
+        return models
+
+    def losses(self, name: str) -> dict:
+        """The loss columns of the model's ``losses.csv`` (at most 500 evenly spread rows)."""
+        path = self.model_path(name) / "losses.csv"
+        rows = list(csv.DictReader(open(path))) if path.is_file() else []
+        rows = rows[:: max(1, len(rows) // 500)]
+        keys = [k for k in (rows[0] if rows else {}) if k not in ("step", "epoch", "lr", "seconds")]
+        return {"step": [int(r["step"]) for r in rows], "series": {k: [float(r[k]) for r in rows] for k in keys}}
+
+    def sample(self, name: str) -> Path:
+        samples = sorted((self.model_path(name) / "samples").glob("step_*.png"))
+        if not samples:
+            raise DancesynthError(f"The appearance model {name} has no sample image yet.")
+        return samples[-1]
+
+    # --- jobs --------------------------------------------------------------------------------------------
+    def _preset(self, preset: str) -> str:
+        if preset not in PRESETS:
+            raise DancesynthError(f"Unknown preset {preset!r}; choose one of {', '.join(PRESETS)}.")
+        if preset != "auto":
+            return preset
+        from dancesynth.core.device import resolve_device, resolve_precision
+        from stage2_video.models.pix2pixhd import affordable_preset
+
+        device = resolve_device(self.device)
+        return affordable_preset(device, resolve_precision("auto", device))
+
+    def _device_flag(self) -> list[str]:
+        return [] if self.device == "auto" else ["--device", self.device]
+
+    def create_job(self, body: dict) -> dict:
+        """Check a job request (one sentence for what is wrong) and queue it."""
+        kind = body.get("kind")
+        with _no_error_paths(self.data):
+            if kind == "dance":
+                return self._dance_job(body)
+            if kind in ("train", "preview"):
+                return self._train_job(body) if kind == "train" else self._preview_job(body)
+            if kind == "demo":
+                minutes = _number(body, "minutes", 15.0, 1.01, 24 * 60, "demo's time budget (minutes)")
+                folder = self.data / "demo"
+                command = shlex.join(["dancesynth", "demo", "--out", str(folder), "--minutes", f"{minutes:g}",
+                                      *self._device_flag()])
+                return self.jobs.create("demo", f"demo, {minutes:g} min", {"minutes": minutes}, command)
+        raise DancesynthError(f"Unknown job kind {kind!r}; choose dance, train, preview or demo.")
+
+    def _dance_job(self, body: dict) -> dict:
+        song = self.song(body.get("song"))
+        start = _number(body, "start", 0.0, 0.0, song["duration"], "segment start (seconds)")
+        duration = _number(body, "duration", None, 1.0, 24 * 3600, "segment duration (seconds)")
+        seed = int(_number(body, "seed", 0, 0, 2**31 - 1, "seed", integer=True))
+        if start > song["duration"] - 1.0:
+            raise DancesynthError(f"The segment start {start:g} s is too close to the end of the song, which lasts "
+                                  f"{song['duration']:.1f} s; choose a start at least 1 s before its end.")
+        params = {"song_path": song["path"], "start": start, "duration": duration, "seed": seed}
+        segment = ["--start", f"{start:g}", *(["--duration", f"{duration:g}"] if duration else []),
+                   "--seed", str(seed)]
+        if body.get("model"):
+            model = self.model_path(body["model"])
+            params["video_model"] = str(model)
+            who = ["--video-model", str(model)]
+            source = next((m for m in self.models() if m["name"] == model.name), None)
+            target = f"{source['video']} ({source['preset']})" if source else model.name
+        else:
+            if not body.get("video"):
+                raise DancesynthError("Choose the person: a trained appearance model or an uploaded video.")
+            video = self.upload(body["video"], "video")
+            minutes = _number(body, "minutes", 30.0, 0.05, 24 * 60, "training budget (minutes)")
+            preset = self._preset(body.get("preset", "auto"))
+            params.update(target=video["path"], minutes=minutes, preset=preset)
+            who = ["--target", video["path"], "--train-minutes", f"{minutes:g}", "--preset", preset,
+                   "--cache", str(self.cache)]
+            target = video["name"]
+        command = shlex.join(["dancesynth", "dance", song["path"], *who, *segment, "--out", "dance.mp4",
+                              "--skeleton-preview", "skeleton.mp4", "--side-by-side", "side_by_side.mp4",
+                              *self._device_flag()])
+        return self.jobs.create("dance", f"{song['name']} danced by {target}", params, command)
+
+    def _train_job(self, body: dict) -> dict:
+        from stage2_video.cache import entry_path
+
+        minutes = _number(body, "minutes", 10.0, 0.05, 24 * 60, "training budget (minutes)")
+        if body.get("model"):
+            model = self.model_path(body["model"])
+            source = next((m for m in self.models() if m["name"] == model.name), None)
+            video = Path(source["video_path"]) if source else Path()
+            if not video.is_file():
+                raise DancesynthError(f"The video the model {model.name} was trained on is gone; upload it again "
+                                      "to continue its training.")
+            preset, name = source["preset"], video.name
+        else:
+            if not body.get("video"):
+                raise DancesynthError("Upload a video of the person, or pick a model to continue.")
+            upload = self.upload(body["video"], "video")
+            video, name = Path(upload["path"]), upload["name"]
+            preset = self._preset(body.get("preset", "auto"))
+        entry = entry_path(video, preset, self.cache)
+        command = shlex.join(["dancesynth", "train-video", str(video), "--out", str(entry), "--preset", preset,
+                              "--minutes", f"{minutes:g}", *(["--resume"] if (entry / "latest.json").is_file() else []),
+                              *self._device_flag()])
+        return self.jobs.create("train", f"appearance model of {name}, {minutes:g} min more",
+                                {"target": str(video), "minutes": minutes, "preset": preset, "entry": entry.name},
+                                command)
+
+    def _preview_job(self, body: dict) -> dict:
+        upload = self.upload(body.get("video", ""), "video")
+        command = shlex.join(["dancesynth", "extract-poses", upload["path"], "--out", "poses.npz", "--preview",
+                              "preview.mp4"])
+        return self.jobs.create("preview", f"who is tracked in {upload['name']}", {"target": upload["path"]},
+                                command)
+
+
+def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_upload_mb: float = 500.0,
+               max_song_minutes: float = 10.0) -> FastAPI:
+    """The web app over the data folder ``data`` (uploads, built-in songs, jobs and their outputs) and the
+    appearance-model cache ``cache`` (default: the one `dance --target` uses)."""
+    web = WebApp(data, cache, device, max_upload_mb, max_song_minutes)
+
+    @contextlib.asynccontextmanager
+    async def lifespan(app: FastAPI):
+        web.jobs.start()
+        yield
+        web.jobs.stop()
+
+    app = FastAPI(title="dancesynth", lifespan=lifespan, docs_url=None, redoc_url=None, openapi_url=None)
+    app.state.web = web
+    app.mount("/static", StaticFiles(directory=STATIC), name="static")
+
+    @app.exception_handler(DancesynthError)
+    async def bad_input(request: Request, e: DancesynthError) -> JSONResponse:
+        return JSONResponse({"error": str(e)}, status_code=413 if "upload limit" in str(e) else 400)
+
+    @app.exception_handler(KeyError)
+    async def not_found(request: Request, e: KeyError) -> JSONResponse:
+        return JSONResponse({"error": f"There is no {e.args[0]!r} here; reload the page."}, status_code=404)
+
+    @app.middleware("http")
+    async def upload_size(request: Request, call_next):
+        # Refuse an oversized upload from its declared length, before its body is read.
+        length = request.headers.get("content-length", "")
+        if request.url.path == "/api/uploads" and length.isdigit() and int(length) > web.max_upload_mb * 2**20 + CHUNK:
+            name = request.headers.get("x-file-name", "The file")
+            return JSONResponse({"error": str(web.too_big(name, int(length)))}, status_code=413)
+        return await call_next(request)
+
+    @app.get("/")
+    def index() -> FileResponse:
+        return FileResponse(STATIC / "index.html", headers=NO_CACHE)
+
+    @app.get("/api/config")
+    def config() -> dict:
+        return {"max_upload_mb": web.max_upload_mb, "max_song_minutes": web.max_song_minutes,
+                "cache": str(web.cache), "data": str(web.data), "device": web.device}
+
+    @app.post("/api/uploads")
+    def upload(file: UploadFile, kind: str = Form(...)) -> dict:
+        return web.save_upload(file, kind)
+
+    @app.get("/api/songs")
+    def songs() -> list[dict]:
+        return [{k: s[k] for k in ("id", "name", "duration")} for s in web.songs()]
+
+    @app.get("/api/models")
+    def models() -> list[dict]:
+        return web.models()
+
+    @app.get("/api/models/{name}/losses")
+    def losses(name: str) -> dict:
+        return web.losses(name)
+
+    @app.get("/api/models/{name}/sample")
+    def sample(name: str) -> FileResponse:
+        return FileResponse(web.sample(name), headers=NO_CACHE)
+
+    @app.post("/api/jobs")
+    async def create_job(request: Request) -> dict:
+        try:
+            body = await request.json()
+        except ValueError:
+            body = None
+        if not isinstance(body, dict):
+            raise DancesynthError("A job request is a JSON object; reload the page and try again.")
+        return await _in_thread(web.create_job, body)
+
+    @app.get("/api/jobs")
+    def jobs() -> list[dict]:
+        return web.jobs.jobs()
+
+    @app.get("/api/jobs/{job_id}")
+    def job(job_id: str) -> dict:
+        return web.jobs.get(job_id)
+
+    @app.get("/api/jobs/{job_id}/log")
+    def job_log(job_id: str) -> dict:
+        return {"log": web.jobs.log(job_id)}
+
+    @app.post("/api/jobs/{job_id}/cancel")
+    def cancel(job_id: str) -> dict:
+        return web.jobs.cancel(job_id)
+
+    @app.get("/api/jobs/{job_id}/files/{name:path}")
+    def job_file(job_id: str, name: str, download: bool = False) -> FileResponse:
+        path = web.jobs.output(job_id, name)
+        if not path.is_file():
+            raise DancesynthError(f"The output {name} of this job is gone from the server's data folder.")
+        return FileResponse(path, filename=path.name if download else None,
+                            content_disposition_type="attachment" if download else "inline")
+
+    return app
+
+
+async def _in_thread(fn, *args):
+    from starlette.concurrency import run_in_threadpool
+
+    return await run_in_threadpool(fn, *args)
+
+
+def serve(host: str, port: int, data: Path, cache: Path | None = None, device: str = "auto",
+          max_upload_mb: float = 500.0, max_song_minutes: float = 10.0) -> None:
+    """Run the web app until Ctrl-C."""
+    import uvicorn
+
+    app = create_app(data, cache, device, max_upload_mb, max_song_minutes)
+    logger.info(f"dancesynth web app on http://{host}:{port} (data in {app.state.web.data}; Ctrl-C stops it)")
+    uvicorn.run(app, host=host, port=port, log_level="warning")

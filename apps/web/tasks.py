@@ -1,0 +1,158 @@
+"""What a web job's worker process runs: :func:`run_job` (the spawn target) and one function per job kind.
+
+A worker logs into the job's ``log.txt`` (its stdout and stderr too, so native libraries' messages land there)
+with progress lines every :data:`PROGRESS_INTERVAL_S`, and writes ``result.json``: ``{"outputs": {name: path
+relative to the data folder}, "info": {...}}`` or ``{"error": sentence}``. SIGTERM (cancel) stops it like Ctrl-C,
+so files being written under temporary names are removed. Heavy modules are imported in the worker only.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import logging
+import os
+import re
+import signal
+import sys
+import threading
+import time
+import traceback
+from collections.abc import Callable
+from pathlib import Path
+
+from apps.web.jobs import JOB_FILE, LOG_FILE, OUT, RESULT_FILE, write_json
+
+logger = logging.getLogger(__name__)
+
+# Often enough that the page's progress moves while a short dance renders.
+PROGRESS_INTERVAL_S = 0.5
+PREVIEW_SECONDS = 5.0
+DEMO_FOLDER = "demo"
+# Files of the demo's folder the page shows (summary.md links to them).
+DEMO_FILES = ("summary.md", "frames.png", "dance.mp4", "skeleton.mp4", "side_by_side.mp4", "target/target.mp4",
+              "runs/video/losses.png")
+
+
+def user_message(message: str, data: Path) -> str:
+    """A message without the data folder's upload paths: ``DATA/uploads/<id>/song.mp3`` reads ``song.mp3``."""
+    return re.sub(re.escape(str(data / "uploads")) + r"/[0-9a-f]+/", "", message)
+
+
+def _relative(path: Path, data: Path) -> str:
+    return str(Path(path).resolve().relative_to(data.resolve()))
+
+
+def dance_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
+    """The dance, its skeleton and side-by-side videos, by :func:`apps.pipeline.dance`."""
+    from apps.pipeline import dance
+
+    out.mkdir(exist_ok=True)
+    files = {"dance": out / "dance.mp4", "skeleton": out / "skeleton.mp4", "side_by_side": out / "side_by_side.mp4"}
+    # The cache and training settings go with a target video only (a cached model is given as its run folder).
+    training = ({"cache": settings["cache"], "train_minutes": params.get("minutes"), "preset": params.get("preset")}
+                if params.get("target") else {})
+    result = dance(params["song_path"], files["dance"], video_model=params.get("video_model"),
+                   target=params.get("target"), **training, seed=params["seed"], start=params["start"],
+                   duration=params.get("duration"), skeleton_preview=files["skeleton"],
+                   side_by_side=files["side_by_side"], device=settings["device"])
+    data = Path(settings["data"])
+    return ({name: _relative(path, data) for name, path in files.items()},
+            {"video_model": str(result.video_model), "frames": len(result.poses), "fps": result.poses.fps})
+
+
+def train_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
+    """Train (or continue) the cached appearance model of a video for ``minutes`` more."""
+    from stage2_video.cache import appearance_model_for, entry_path, read_entry
+
+    entry = read_entry(entry_path(params["target"], params["preset"], settings["cache"]))
+    trained = entry.trained_seconds / 60 if entry is not None else 0.0
+    path = appearance_model_for(params["target"], trained + params["minutes"], params["preset"], settings["cache"],
+                                settings["device"])
+    return {}, {"video_model": str(path)}
+
+
+def preview_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
+    """The tracked person's skeleton over the first :data:`PREVIEW_SECONDS` of the video (mp4), and one frame of
+    it (png), so the user sees who will be learnt before training."""
+    import cv2
+
+    from dancesynth.core.draw import draw_pose
+    from dancesynth.core.fileio import atomic_path
+    from dancesynth.core.media import probe_video, read_frames
+    from stage2_video.extract import extract_frames, write_preview
+
+    video = Path(params["target"])
+    info = probe_video(video)
+    count = max(1, int(PREVIEW_SECONDS * info.fps))
+    frames = list(itertools.islice(read_frames(video), count))
+    found = extract_frames(frames, info.fps, (info.width, info.height), total=len(frames),
+                           source=video.name)
+    out.mkdir(exist_ok=True)
+    write_preview(video, found.poses, out / "preview.mp4")
+    middle = len(frames) // 2
+    with atomic_path(out / "preview.png") as tmp:
+        image = draw_pose(frames[middle].copy(), found.poses.keypoints[middle])
+        cv2.imwrite(str(tmp), cv2.cvtColor(image, cv2.COLOR_RGB2BGR))
+    data = Path(settings["data"])
+    return ({"preview": _relative(out / "preview.mp4", data), "image": _relative(out / "preview.png", data)},
+            {"found": float(found.found.mean())})
+
+
+def demo_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
+    """:func:`apps.demo.run_demo` into ``DATA/demo`` (kept when cancelled: the demo continues where it stopped)."""
+    from apps.demo import run_demo
+
+    data = Path(settings["data"])
+    folder = data / DEMO_FOLDER
+    run_demo(folder, minutes=params["minutes"], seed=params.get("seed", 0), device=settings["device"])
+    return {name: _relative(folder / name, data) for name in DEMO_FILES if (folder / name).is_file()}, {}
+
+
+TASKS: dict[str, Callable[[dict, Path, dict], tuple[dict, dict]]] = {
+    "dance": dance_job, "train": train_job, "preview": preview_job, "demo": demo_job}
+
+
+def _terminated(signum: int, frame: object) -> None:
+    raise KeyboardInterrupt  # cancel cleans up (temporary files deleted) exactly like Ctrl-C
+
+
+def _exit_with_parent(parent: int) -> None:
+    """End this worker (as a cancel would) when the server that started it is gone."""
+    while os.getppid() == parent:
+        time.sleep(1.0)
+    os.kill(os.getpid(), signal.SIGTERM)
+
+
+def run_job(job_dir: str, settings: dict) -> None:
+    """Run the job in ``job_dir`` (the worker process's entry point)."""
+    from apps.cli import configure_logging
+    from dancesynth.core import progress
+    from dancesynth.core.errors import DancesynthError
+    from dancesynth.core.fileio import os_error_sentence
+
+    folder = Path(job_dir)
+    signal.signal(signal.SIGTERM, _terminated)
+    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
+    log = open(folder / LOG_FILE, "a", buffering=1)
+    os.dup2(log.fileno(), 1)
+    os.dup2(log.fileno(), 2)
+    sys.stdout = sys.stderr = log
+    configure_logging(logging.INFO, log)
+    progress.LOG_INTERVAL_S = PROGRESS_INTERVAL_S
+    job = json.loads((folder / JOB_FILE).read_text())
+    data = Path(settings["data"])
+    try:
+        outputs, info = TASKS[job["kind"]](job["params"], folder / OUT, settings)
+        result: dict = {"outputs": outputs, "info": info}
+    except KeyboardInterrupt:
+        logger.info("cancelled")
+        raise SystemExit(130) from None
+    except (DancesynthError, OSError) as e:
+        message = str(e) if isinstance(e, DancesynthError) else os_error_sentence(e)
+        logger.error(message)
+        result = {"error": user_message(message, data)}
+    except Exception as e:  # noqa: BLE001 - any other failure is reported in the page, its traceback in the log
+        traceback.print_exc()
+        result = {"error": f"The job failed unexpectedly ({type(e).__name__}: {e}); its log has the details."}
+    write_json(folder / RESULT_FILE, result)
