@@ -14,7 +14,8 @@ DESCRIPTION = """\
 Start a local web app (open the address it prints in a browser) with three tabs:
   Dance              a song (uploaded or built-in) and a person (a cached appearance model, or a video trained
                      now within a minutes budget) -> the dance, its skeleton and side-by-side videos to play and
-                     download, with the equivalent `dancesynth dance` command,
+                     download, with the equivalent `dancesynth dance` command; the pose model is the
+                     built-in one or a stage-1 run of --pose-models,
   Appearance models  the cached models with held-out SSIM and training time; train or continue one with a live
                      loss plot and sample image, after a preview of who is tracked in the video,
   Demo               `dancesynth demo` in one click, its summary shown.
@@ -26,6 +27,7 @@ it to a network you do not trust).
 examples:
   dancesynth serve
   dancesynth serve --port 8080 --data ~/dances --max-upload-mb 2000
+  dancesynth serve --pose-models runs/pose
 """
 
 
@@ -43,6 +45,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "(default ~/.local/share/dancesynth/web)")
     p.add_argument("--cache", type=output_folder, default=None, metavar="DIR",
                    help="appearance-model cache, shared with `dance --target` (default ~/.cache/dancesynth/appearance)")
+    p.add_argument("--pose-models", type=Path, default=None, metavar="DIR",
+                   help="folder of stage-1 runs (`dancesynth train-pose --out` folders, in it or one level down) "
+                        "offered on the Dance tab besides the built-in pose model")
     p.add_argument("--max-upload-mb", type=positive_float, default=500.0, metavar="MB",
                    help="largest file accepted, in MB (default 500)")
     p.add_argument("--max-song-minutes", type=positive_float, default=10.0, metavar="M",
@@ -54,4 +59,5 @@ def run(args: argparse.Namespace) -> None:
     from apps.web.server import serve
 
     serve(args.host, args.port, Path(args.data) if args.data else _default_data(),
-          Path(args.cache) if args.cache else None, args.device, args.max_upload_mb, args.max_song_minutes)
+          Path(args.cache) if args.cache else None, args.device, args.max_upload_mb, args.max_song_minutes,
+          args.pose_models)

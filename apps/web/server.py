@@ -5,6 +5,7 @@ appearance models and jobs (:mod:`apps.web.jobs`).
 GET  /                              the page            GET  /api/config          limits the page checks first
 POST /api/uploads (file, kind)      a song or a video   GET  /api/songs           built-in songs (made on first use)
 GET  /api/models                    cached appearance models, with held-out SSIM and training time
+GET  /api/pose-models               the built-in pose model and the stage-1 runs of --pose-models
 GET  /api/models/{name}/losses      the model's loss curves (losses.csv)   .../sample: its latest sample image
 POST /api/jobs {kind, ...}          queue a dance, train, preview or demo job
 GET  /api/jobs, /api/jobs/{id}      state, queue position, progress     POST /api/jobs/{id}/cancel
@@ -48,6 +49,7 @@ BUILTIN_SONGS, BUILTIN_SECONDS = 3, 30.0
 BUILTIN_SEED = 1
 SONG_CHECK_RATE = 8000  # Hz: enough to check that a file holds audible sound, and fast
 PRESETS = ("auto", "small", "medium")
+BUILTIN_POSE_MODEL = "built-in (Dance Revolution)"  # stage1_pose.pretrained.DEFAULT_POSE_MODEL
 NO_CACHE = {"Cache-Control": "no-store"}
 CHUNK = 1 << 20
 
@@ -87,11 +89,15 @@ class WebApp:
     """What the routes share: the data folder, the cache, the limits and the job store."""
 
     def __init__(self, data: Path, cache: Path | None, device: str, max_upload_mb: float,
-                 max_song_minutes: float) -> None:
+                 max_song_minutes: float, pose_models: Path | None = None) -> None:
         from stage2_video.cache import default_cache_dir
 
         self.data = Path(data).resolve()
         self.cache = Path(cache).resolve() if cache is not None else default_cache_dir()
+        self.pose_models_dir = Path(pose_models).resolve() if pose_models is not None else None
+        if self.pose_models_dir is not None and not self.pose_models_dir.is_dir():
+            raise DancesynthError(f"The pose models folder {pose_models} does not exist; give --pose-models the "
+                                  "folder holding your `dancesynth train-pose` runs.")
         self.device = device
         self.max_upload_mb = max_upload_mb
         self.max_song_minutes = max_song_minutes
@@ -212,6 +218,36 @@ class WebApp:
                            "size": [meta["config"].get("width"), meta["config"].get("height")]})
         return models
 
+    def pose_models(self) -> list[dict]:
+        """The built-in pose model (id "") and every stage-1 run in the --pose-models folder or one level down
+        (id: its path relative to that folder), each named by folder and method."""
+        from dancesynth.core.checkpoint import load_meta
+
+        found = [{"id": "", "name": BUILTIN_POSE_MODEL}]
+        root = self.pose_models_dir
+        if root is None or not root.is_dir():
+            return found
+        for run in sorted({p.parent for pattern in ("*/latest.json", "*/*/latest.json") for p in root.glob(pattern)}):
+            try:
+                method = load_meta(run, "stage1")["method"]
+            except (DancesynthError, KeyError):
+                continue  # another kind of run (an appearance model) or a broken one: not offered
+            run_id = run.relative_to(root).as_posix()
+            found.append({"id": run_id, "name": f"{run_id} ({method})"})
+        return found
+
+    def pose_model_path(self, run_id: str) -> Path:
+        """The run folder of a pose model from :meth:`pose_models`, checked to still be a stage-1 run."""
+        from dancesynth.core.checkpoint import load_meta
+
+        root = self.pose_models_dir
+        path = (root / str(run_id)).resolve() if root is not None else None
+        if path is None or not path.is_relative_to(root) or path == root or not path.is_dir():
+            raise DancesynthError(f"There is no pose model {run_id!r} on this server; reload the page and pick "
+                                  "one from the list.")
+        load_meta(path, "stage1")
+        return path
+
     def losses(self, name: str) -> dict:
         """The loss columns of the model's ``losses.csv`` (at most 500 evenly spread rows)."""
         path = self.model_path(name) / "losses.csv"
@@ -258,6 +294,7 @@ class WebApp:
         raise DancesynthError(f"Unknown job kind {kind!r}; choose dance, train, preview or demo.")
 
     def _dance_job(self, body: dict) -> dict:
+        pose = self.pose_model_path(body["pose_model"]) if body.get("pose_model") else None
         song = self.song(body.get("song"))
         start = _number(body, "start", 0.0, 0.0, song["duration"], "segment start (seconds)")
         duration = _number(body, "duration", None, 1.0, 24 * 3600, "segment duration (seconds)")
@@ -265,9 +302,10 @@ class WebApp:
         if start > song["duration"] - 1.0:
             raise DancesynthError(f"The segment start {start:g} s is too close to the end of the song, which lasts "
                                   f"{song['duration']:.1f} s; choose a start at least 1 s before its end.")
-        params = {"song_path": song["path"], "start": start, "duration": duration, "seed": seed}
+        params = {"song_path": song["path"], "start": start, "duration": duration, "seed": seed,
+                  "pose_model": pose and str(pose)}
         segment = ["--start", f"{start:g}", *(["--duration", f"{duration:g}"] if duration else []),
-                   "--seed", str(seed)]
+                   "--seed", str(seed), *(["--pose-model", str(pose)] if pose else [])]
         if body.get("model"):
             model = self.model_path(body["model"])
             params["video_model"] = str(model)
@@ -324,10 +362,11 @@ class WebApp:
 
 
 def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_upload_mb: float = 500.0,
-               max_song_minutes: float = 10.0) -> FastAPI:
-    """The web app over the data folder ``data`` (uploads, built-in songs, jobs and their outputs) and the
-    appearance-model cache ``cache`` (default: the one `dance --target` uses)."""
-    web = WebApp(data, cache, device, max_upload_mb, max_song_minutes)
+               max_song_minutes: float = 10.0, pose_models: Path | None = None) -> FastAPI:
+    """The web app over the data folder ``data`` (uploads, built-in songs, jobs and their outputs), the
+    appearance-model cache ``cache`` (default: the one `dance --target` uses) and the folder of stage-1 runs
+    ``pose_models`` offered besides the built-in pose model."""
+    web = WebApp(data, cache, device, max_upload_mb, max_song_minutes, pose_models)
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI):
@@ -376,6 +415,10 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
     @app.get("/api/models")
     def models() -> list[dict]:
         return web.models()
+
+    @app.get("/api/pose-models")
+    def pose_models() -> list[dict]:
+        return web.pose_models()
 
     @app.get("/api/models/{name}/losses")
     def losses(name: str) -> dict:
@@ -429,10 +472,10 @@ async def _in_thread(fn, *args):
 
 
 def serve(host: str, port: int, data: Path, cache: Path | None = None, device: str = "auto",
-          max_upload_mb: float = 500.0, max_song_minutes: float = 10.0) -> None:
+          max_upload_mb: float = 500.0, max_song_minutes: float = 10.0, pose_models: Path | None = None) -> None:
     """Run the web app until Ctrl-C."""
     import uvicorn
 
-    app = create_app(data, cache, device, max_upload_mb, max_song_minutes)
+    app = create_app(data, cache, device, max_upload_mb, max_song_minutes, pose_models)
     logger.info(f"dancesynth web app on http://{host}:{port} (data in {app.state.web.data}; Ctrl-C stops it)")
     uvicorn.run(app, host=host, port=port, log_level="warning")

@@ -52,7 +52,8 @@ def dance_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
     # The cache and training settings go with a target video only (a cached model is given as its run folder).
     training = ({"cache": settings["cache"], "train_minutes": params.get("minutes"), "preset": params.get("preset")}
                 if params.get("target") else {})
-    result = dance(params["song_path"], files["dance"], video_model=params.get("video_model"),
+    result = dance(params["song_path"], files["dance"], pose_model=params.get("pose_model"),
+                   video_model=params.get("video_model"),
                    target=params.get("target"), **training, seed=params["seed"], start=params["start"],
                    duration=params.get("duration"), skeleton_preview=files["skeleton"],
                    side_by_side=files["side_by_side"], device=settings["device"])

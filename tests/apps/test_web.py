@@ -1,7 +1,8 @@
 """`dancesynth serve`: the web page in a real headless browser (Debian's chromium, driven by Playwright).
 
-The server runs in a thread on a free port with a temporary data folder and a cache holding one tiny appearance
-model. Set DANCESYNTH_SCREENSHOTS=docs/screenshots to keep the screenshots of the tabs there (see README).
+The server runs in a thread on a free port with a temporary data folder, a cache holding one tiny appearance
+model and a folder of pose models holding one tiny stage-1 run.
+Set DANCESYNTH_SCREENSHOTS=docs/screenshots to keep the screenshots of the tabs there (see README).
 """
 
 import json
@@ -25,14 +26,17 @@ from playwright.sync_api import Page, expect, sync_playwright  # noqa: E402
 from apps.web.server import create_app  # noqa: E402
 from dancesynth.core.media import probe_streams, write_video  # noqa: E402
 from dancesynth.core.skeleton import PoseSequence  # noqa: E402
+from stage1_pose.train import train  # noqa: E402
 from stage2_video.cache import SOURCE_FILE, entry_path  # noqa: E402
 from stage2_video.data import video_digest  # noqa: E402
 from stage2_video.synthetic_person import appearance_preset, write_person_video  # noqa: E402
 from stage2_video.train import TrainOptions, train_video  # noqa: E402
 
 CHROMIUM = "/usr/bin/chromium"
+TINY_LSTM = dict(hidden=16, layers=1, dropout=0.0, window_frames=30, batch_size=4)
 TINY_VIDEO = {"width": 32, "height": 32, "ngf": 8, "n_downsample": 2, "n_blocks": 1, "ndf": 8, "batch_size": 4}
 MAX_UPLOAD_MB, MAX_SONG_MINUTES = 2.0, 0.75
+POSE_RUN = "mine/lstm"
 JOB_TIMEOUT_MS = 180_000
 
 
@@ -65,8 +69,9 @@ def server(tiny_stage1_dataset, tmp_path_factory):
                 device="cpu", overrides=TINY_VIDEO)
     (entry / SOURCE_FILE).write_text(json.dumps({"video_sha256": video_digest(video), "video": str(video),
                                                  "preset": "small"}))
+    train("lstm", tiny_stage1_dataset, root / "pose_models" / POSE_RUN, overrides=TINY_LSTM, epochs=1, device="cpu")
     app = create_app(root / "data", root / "cache", device="cpu", max_upload_mb=MAX_UPLOAD_MB,
-                     max_song_minutes=MAX_SONG_MINUTES)
+                     max_song_minutes=MAX_SONG_MINUTES, pose_models=root / "pose_models")
     port = _free_port()
     uv = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
     thread = threading.Thread(target=uv.run, daemon=True)
@@ -109,16 +114,28 @@ def shots(tmp_path_factory) -> Path:
     return path
 
 
+def _screenshot(page: Page, root: Path, path: Path) -> None:
+    """Save a screenshot with the test's temporary folders shown as the server's default ones."""
+    shown = [[str(root / "data"), "~/.local/share/dancesynth/web"],
+             [str(root / "cache"), "~/.cache/dancesynth/appearance"], [str(root / "pose_models"), "runs/pose"]]
+    page.evaluate("""pairs => { const w = document.createTreeWalker(document.body, NodeFilter.SHOW_TEXT);
+      while (w.nextNode()) for (const [a, b] of pairs) w.currentNode.data = w.currentNode.data.replaceAll(a, b);
+    }""", shown)
+    page.screenshot(path=path, full_page=True)
+
+
 def _upload(page: Page, selector: str, path: Path, status: str) -> None:
     page.set_input_files(selector, str(path))
     expect(page.locator(status)).to_contain_text("✓")
 
 
-def _start_dance(page: Page, song: Path, model: str, duration: str = "") -> str:
-    """Upload ``song``, pick ``model``, press Dance; returns the new job's id."""
+def _start_dance(page: Page, song: Path, model: str, duration: str = "", pose_model: str = "") -> str:
+    """Upload ``song``, pick ``model`` and ``pose_model`` ("" = the built-in one), press Dance; returns the new
+    job's id."""
     before = page.locator(".job[data-kind=dance]").count()
     _upload(page, "#song-file", song, "#song-status")
     page.select_option("#dance-model", model)
+    page.select_option("#pose-model", pose_model)
     page.fill("#duration", duration)
     page.click("#dance-button")
     expect(page.locator(".job[data-kind=dance]")).to_have_count(before + 1)
@@ -128,7 +145,8 @@ def _start_dance(page: Page, song: Path, model: str, duration: str = "") -> str:
 def test_dance_from_an_uploaded_song_to_a_downloaded_video(server, page, shots, tmp_path):
     _, root, entry = server
     song = _song(tmp_path / "my song.wav", 3.0)
-    job = _start_dance(page, song, entry.name, duration="2")
+    expect(page.locator("#pose-model option")).to_have_text(["built-in (Dance Revolution)", f"{POSE_RUN} (lstm)"])
+    job = _start_dance(page, song, entry.name, duration="2", pose_model=POSE_RUN)
     card = page.locator(f".job[data-job='{job}']")
     expect(card).to_have_class(re.compile(r"\bdone\b"), timeout=JOB_TIMEOUT_MS)
     expect(card.locator(".progress-text")).to_contain_text("finished in")
@@ -138,6 +156,7 @@ def test_dance_from_an_uploaded_song_to_a_downloaded_video(server, page, shots, 
         page.wait_for_function("v => v.readyState >= 2 && v.duration > 0", arg=handle, timeout=30_000)
     assert "dancesynth dance" in card.locator("code.command").text_content()
     assert f"--video-model {entry}" in card.locator("code.command").text_content()
+    assert f"--pose-model {root / 'pose_models' / POSE_RUN}" in card.locator("code.command").text_content()
     with page.expect_download() as download:
         card.locator("a.download").click()
     path = tmp_path / "downloaded.mp4"
@@ -145,7 +164,7 @@ def test_dance_from_an_uploaded_song_to_a_downloaded_video(server, page, shots, 
     streams = probe_streams(path)
     assert streams["video_codec"] == "h264" and streams["video_frames"] > 0
     assert streams["audio_codec"] == "aac" and abs(streams["audio_duration"] - 2.0) < 0.2
-    page.screenshot(path=shots / "dance.png", full_page=True)
+    _screenshot(page, root, shots / "dance.png")
 
 
 def test_bad_input_gets_its_sentence_and_breaks_nothing(server, page, tmp_path):
@@ -172,6 +191,11 @@ def test_bad_input_gets_its_sentence_and_breaks_nothing(server, page, tmp_path):
     assert not list((root / "data" / "uploads").glob("*/*.txt"))
     page.click("#dance-button")
     expect(page.locator("#dance-error")).to_contain_text("Choose a song file first")
+    # A pose run that vanished since the page listed it, or that is not a pose model, gets its sentence.
+    for run, says in (("mine/gone", "There is no pose model 'mine/gone' on this server"),
+                      ("../cache", "There is no pose model '../cache' on this server")):
+        answer = page.request.post(f"{url}/api/jobs", data={"kind": "dance", "pose_model": run})
+        assert answer.status == 400 and answer.json()["error"].startswith(says)
 
 
 def test_a_video_without_a_person_fails_its_preview_with_the_sentence(page, tmp_path):
@@ -188,7 +212,7 @@ def test_a_video_without_a_person_fails_its_preview_with_the_sentence(page, tmp_
 
 
 def test_continue_training_shows_the_live_plot_and_the_models_ssim(server, page, shots):
-    _, _, entry = server
+    _, root, entry = server
     page.click("nav button[data-tab=models]")
     row = page.locator(f"tr[data-model='{entry.name}']")
     assert re.fullmatch(r"0\.\d{3}", row.locator("td.ssim").text_content())
@@ -199,7 +223,7 @@ def test_continue_training_shows_the_live_plot_and_the_models_ssim(server, page,
     expect(card.locator("svg.plot polyline").first).to_be_attached(timeout=10_000)
     expect(card.locator(".live img")).to_be_visible(timeout=10_000)
     assert "train-video" in card.locator("code.command").text_content()
-    page.screenshot(path=shots / "models.png", full_page=True)
+    _screenshot(page, root, shots / "models.png")
 
 
 def test_jobs_queue_survive_a_reload_show_progress_and_cancel(server, page, browser, tmp_path, shots):
@@ -213,7 +237,7 @@ def test_jobs_queue_survive_a_reload_show_progress_and_cancel(server, page, brow
     card = page.locator(f".job[data-job='{first}']")
     expect(card.locator(".progress-text")).to_have_text(re.compile(r"rendering: \d+/\d+ frame \(\d+%\), \w+ left"),
                                                         timeout=JOB_TIMEOUT_MS)
-    page.screenshot(path=shots / "progress.png", full_page=True)
+    _screenshot(page, root, shots / "progress.png")
     # A second browser sees the same jobs and cancels the running one; the queued one then runs.
     other = browser.new_context().new_page()
     other.goto(url)

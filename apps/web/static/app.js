@@ -89,6 +89,14 @@ async function loadSongs() {
   select.replaceChildren(...songs.map(s => el("option", { value: s.id, text: s.name })));
 }
 
+async function loadPoseModels() {
+  const select = $("#pose-model");
+  const chosen = select.value;
+  const runs = await api("/api/pose-models");
+  select.replaceChildren(...runs.map(r => el("option", { value: r.id, text: r.name })));
+  if (runs.some(r => r.id === chosen)) select.value = chosen;
+}
+
 async function loadModels() {
   const models = await api("/api/models");
   state.models = models;
@@ -134,7 +142,8 @@ function uploaded(inputId, what) {
 function dance(event) {
   event.preventDefault();
   const error = $("#dance-error");
-  const body = { kind: "dance", start: $("#start").value, duration: $("#duration").value || null, seed: $("#seed").value };
+  const body = { kind: "dance", start: $("#start").value, duration: $("#duration").value || null, seed: $("#seed").value,
+                 pose_model: $("#pose-model").value };
   try {
     body.song = document.querySelector("input[name=song-source]:checked").value === "upload"
       ? uploaded("song-file", "a song file") : $("#builtin-song").value;
@@ -333,7 +342,7 @@ async function main() {
     e.preventDefault();
     startJob({ kind: "demo", minutes: $("#demo-minutes").value }, $("#demo-error"), $("#demo-button"));
   });
-  await Promise.all([loadModels(), refreshJobs()]);
+  await Promise.all([loadModels(), loadPoseModels(), refreshJobs()]);
   setInterval(refreshJobs, POLL_MS);
   document.body.dataset.ready = "1";
   loadSongs().catch(e => { $("#builtin-song").replaceChildren(el("option", { value: "", text: e.message })); });
