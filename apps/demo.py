@@ -29,15 +29,12 @@ from stage1_pose.data.dataset import Clip, DanceDataset
 from stage1_pose.data.make_dataset import make_dataset
 from stage1_pose.generate import generate_dance, load_pose_model
 from stage1_pose.metrics import beat_align_score, beat_coverage, beat_hit_rate
-from stage1_pose.pretrained import DEFAULT_POSE_MODEL
+from stage1_pose.pretrained import DEFAULT_POSE_MODEL, TRAINING_DATA_SEED
 from stage2_video.cache import train_for
 from stage2_video.models.pix2pixhd import affordable_preset
 from stage2_video.synthetic_person import appearance_preset, write_person_video
 
 logger = logging.getLogger(__name__)
-
-SHIPPED_MODEL_DATA_SEED = 0  # scripts/build_pose_model.sh makes its dataset with make-dataset's default seed
-
 
 @dataclass(frozen=True)
 class DemoPlan:
@@ -114,8 +111,8 @@ def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, d
 
     data_dir = out / "dataset"
     if not (data_dir / "manifest.json").is_file():
-        # The shipped pose model learned the songs of dataset seed 0; any other seed makes songs it never heard.
-        make_dataset(data_dir, clips=plan.clips, seconds=plan.clip_seconds, seed=SHIPPED_MODEL_DATA_SEED + 1 + seed)
+        # Songs the shipped pose model never heard.
+        make_dataset(data_dir, clips=plan.clips, seconds=plan.clip_seconds, seed=TRAINING_DATA_SEED + 1 + seed)
     dataset = DanceDataset(data_dir)
     step("built-in songs")
 

@@ -29,7 +29,7 @@ import threading
 import uuid
 from pathlib import Path
 
-from fastapi import FastAPI, Form, Request, UploadFile
+from fastapi import APIRouter, FastAPI, Form, Request, UploadFile
 from fastapi.responses import FileResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
 
@@ -45,13 +45,18 @@ UPLOAD_META = "upload.json"
 SONGS = "songs"
 # Built-in songs: a few, short enough to be made in seconds on first use.
 BUILTIN_SONGS, BUILTIN_SECONDS = 3, 30.0
-# Any seed but 0: the shipped pose model learnt dataset seed 0's songs, so these are new to it.
-BUILTIN_SEED = 1
 SONG_CHECK_RATE = 8000  # Hz: enough to check that a file holds audible sound, and fast
 PRESETS = ("auto", "small", "medium")
 BUILTIN_POSE_MODEL = "built-in (Dance Revolution)"  # stage1_pose.pretrained.DEFAULT_POSE_MODEL
 NO_CACHE = {"Cache-Control": "no-store"}
 CHUNK = 1 << 20
+# The JSON API's routes sit under this prefix; uploads are refused by size before their body is read.
+API = "/api"
+UPLOADS_ROUTE = "/uploads"
+
+
+class UploadTooLarge(DancesynthError):
+    """An upload over the server's size limit (HTTP 413 rather than 400)."""
 
 
 @contextlib.contextmanager
@@ -105,8 +110,8 @@ class WebApp:
         self._songs_lock = threading.Lock()
 
     # --- uploads -----------------------------------------------------------------------------------------
-    def too_big(self, name: str, size: int) -> DancesynthError:
-        return DancesynthError(f"{name} is {size / 2**20:.0f} MB, over this server's upload limit of "
+    def too_big(self, name: str, size: int) -> UploadTooLarge:
+        return UploadTooLarge(f"{name} is {size / 2**20:.0f} MB, over this server's upload limit of "
                                f"{self.max_upload_mb:g} MB; use a shorter file or start the server with a larger "
                                "--max-upload-mb.")
 
@@ -167,13 +172,15 @@ class WebApp:
     def songs(self) -> list[dict]:
         """The built-in songs, made into ``DATA/songs`` on first use."""
         from stage1_pose.data.make_dataset import make_dataset
+        from stage1_pose.pretrained import TRAINING_DATA_SEED
 
         root = self.data / SONGS
         with self._songs_lock:
             if not (root / "manifest.json").is_file():
                 shutil.rmtree(root, ignore_errors=True)  # what an interrupted first use left
-                make_dataset(root, clips=BUILTIN_SONGS, seconds=BUILTIN_SECONDS, seed=BUILTIN_SEED, workers=1,
-                             progress=False)
+                # Songs the shipped pose model never heard.
+                make_dataset(root, clips=BUILTIN_SONGS, seconds=BUILTIN_SECONDS, seed=TRAINING_DATA_SEED + 1,
+                             workers=1, progress=False)
         songs = []
         for clip in json.loads((root / "manifest.json").read_text())["clips"]:
             tempo = json.loads((root / clip["beats"]).read_text()).get("tempo")
@@ -380,7 +387,7 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
 
     @app.exception_handler(DancesynthError)
     async def bad_input(request: Request, e: DancesynthError) -> JSONResponse:
-        return JSONResponse({"error": str(e)}, status_code=413 if "upload limit" in str(e) else 400)
+        return JSONResponse({"error": str(e)}, status_code=413 if isinstance(e, UploadTooLarge) else 400)
 
     @app.exception_handler(KeyError)
     async def not_found(request: Request, e: KeyError) -> JSONResponse:
@@ -390,45 +397,48 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
     async def upload_size(request: Request, call_next):
         # Refuse an oversized upload from its declared length, before its body is read.
         length = request.headers.get("content-length", "")
-        if request.url.path == "/api/uploads" and length.isdigit() and int(length) > web.max_upload_mb * 2**20 + CHUNK:
+        limit = web.max_upload_mb * 2**20 + CHUNK  # the form's own fields come on top of the file
+        if request.url.path == API + UPLOADS_ROUTE and length.isdigit() and int(length) > limit:
             name = request.headers.get("x-file-name", "The file")
             return JSONResponse({"error": str(web.too_big(name, int(length)))}, status_code=413)
         return await call_next(request)
+
+    api = APIRouter(prefix=API)
 
     @app.get("/")
     def index() -> FileResponse:
         return FileResponse(STATIC / "index.html", headers=NO_CACHE)
 
-    @app.get("/api/config")
+    @api.get("/config")
     def config() -> dict:
         return {"max_upload_mb": web.max_upload_mb, "max_song_minutes": web.max_song_minutes,
                 "cache": str(web.cache), "data": str(web.data), "device": web.device}
 
-    @app.post("/api/uploads")
+    @api.post(UPLOADS_ROUTE)
     def upload(file: UploadFile, kind: str = Form(...)) -> dict:
         return web.save_upload(file, kind)
 
-    @app.get("/api/songs")
+    @api.get("/songs")
     def songs() -> list[dict]:
         return [{k: s[k] for k in ("id", "name", "duration")} for s in web.songs()]
 
-    @app.get("/api/models")
+    @api.get("/models")
     def models() -> list[dict]:
         return web.models()
 
-    @app.get("/api/pose-models")
+    @api.get("/pose-models")
     def pose_models() -> list[dict]:
         return web.pose_models()
 
-    @app.get("/api/models/{name}/losses")
+    @api.get("/models/{name}/losses")
     def losses(name: str) -> dict:
         return web.losses(name)
 
-    @app.get("/api/models/{name}/sample")
+    @api.get("/models/{name}/sample")
     def sample(name: str) -> FileResponse:
         return FileResponse(web.sample(name), headers=NO_CACHE)
 
-    @app.post("/api/jobs")
+    @api.post("/jobs")
     async def create_job(request: Request) -> dict:
         try:
             body = await request.json()
@@ -438,23 +448,23 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
             raise DancesynthError("A job request is a JSON object; reload the page and try again.")
         return await _in_thread(web.create_job, body)
 
-    @app.get("/api/jobs")
+    @api.get("/jobs")
     def jobs() -> list[dict]:
         return web.jobs.jobs()
 
-    @app.get("/api/jobs/{job_id}")
+    @api.get("/jobs/{job_id}")
     def job(job_id: str) -> dict:
         return web.jobs.get(job_id)
 
-    @app.get("/api/jobs/{job_id}/log")
+    @api.get("/jobs/{job_id}/log")
     def job_log(job_id: str) -> dict:
         return {"log": web.jobs.log(job_id)}
 
-    @app.post("/api/jobs/{job_id}/cancel")
+    @api.post("/jobs/{job_id}/cancel")
     def cancel(job_id: str) -> dict:
         return web.jobs.cancel(job_id)
 
-    @app.get("/api/jobs/{job_id}/files/{name:path}")
+    @api.get("/jobs/{job_id}/files/{name:path}")
     def job_file(job_id: str, name: str, download: bool = False) -> FileResponse:
         path = web.jobs.output(job_id, name)
         if not path.is_file():
@@ -462,6 +472,7 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
         return FileResponse(path, filename=path.name if download else None,
                             content_disposition_type="attachment" if download else "inline")
 
+    app.include_router(api)
     return app
 
 
