@@ -52,6 +52,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="largest file accepted, in MB (default 500)")
     p.add_argument("--max-song-minutes", type=positive_float, default=10.0, metavar="M",
                    help="longest song accepted, in minutes (default 10)")
+    p.add_argument("--keep-uploads-hours", type=positive_float, default=24.0, metavar="H",
+                   help="remove uploaded songs and videos older than this many hours, at start and at each upload, "
+                        "unless a queued or running job uses them or a cached appearance model was trained on them "
+                        "(default 24)")
     p.add_argument("--device", default="auto", help="auto (GPU when available), cpu or cuda (default auto)")
 
 
@@ -60,4 +64,4 @@ def run(args: argparse.Namespace) -> None:
 
     serve(args.host, args.port, Path(args.data) if args.data else _default_data(),
           Path(args.cache) if args.cache else None, args.device, args.max_upload_mb, args.max_song_minutes,
-          args.pose_models)
+          args.pose_models, args.keep_uploads_hours)

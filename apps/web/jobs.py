@@ -129,6 +129,10 @@ class JobStore:
         queued = [j["id"] for j in jobs if j["state"] == "queued"]
         return [self.view(j, queued) for j in reversed(jobs)]
 
+    def active(self) -> list[dict]:
+        """The queued and running jobs."""
+        return [j for j in self._all() if j["state"] in ("queued", "running")]
+
     def get(self, job_id: str) -> dict:
         return self.view(self._read(job_id))
 

@@ -12,6 +12,9 @@ GET  /api/jobs, /api/jobs/{id}      state, queue position, progress     POST /ap
 GET  /api/jobs/{id}/files/{name}    an output (?download=1: as an attachment)
 ```
 
+Uploads older than ``keep_uploads_hours`` are removed at start and at each new upload, unless a queued or
+running job uses them or a cached model names them as its video (continuing its training needs it).
+
 Bad input answers ``{"error": sentence}`` with status 400 (413 for an upload over the size limit), the
 :class:`~dancesynth.core.errors.DancesynthError` sentence the CLI would print.
 """
@@ -20,14 +23,18 @@ from __future__ import annotations
 
 import contextlib
 import csv
+import dataclasses
+import functools
 import json
 import logging
 import re
 import shlex
 import shutil
 import threading
+import time
 import uuid
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from fastapi import APIRouter, FastAPI, Form, Request, UploadFile
 from fastapi.responses import FileResponse, JSONResponse
@@ -36,6 +43,9 @@ from fastapi.staticfiles import StaticFiles
 from apps.web.jobs import JobStore
 from apps.web.tasks import user_message
 from dancesynth.core.errors import DancesynthError
+
+if TYPE_CHECKING:
+    from apps.demo import DemoPlan
 
 logger = logging.getLogger(__name__)
 
@@ -94,11 +104,10 @@ class WebApp:
     """What the routes share: the data folder, the cache, the limits and the job store."""
 
     def __init__(self, data: Path, cache: Path | None, device: str, max_upload_mb: float,
-                 max_song_minutes: float, pose_models: Path | None = None) -> None:
-        from stage2_video.cache import default_cache_dir
-
+                 max_song_minutes: float, pose_models: Path | None = None, keep_uploads_hours: float = 24.0,
+                 demo: DemoPlan | None = None) -> None:
         self.data = Path(data).resolve()
-        self.cache = Path(cache).resolve() if cache is not None else default_cache_dir()
+        self._cache = Path(cache).resolve() if cache is not None else None
         self.pose_models_dir = Path(pose_models).resolve() if pose_models is not None else None
         if self.pose_models_dir is not None and not self.pose_models_dir.is_dir():
             raise DancesynthError(f"The pose models folder {pose_models} does not exist; give --pose-models the "
@@ -106,8 +115,21 @@ class WebApp:
         self.device = device
         self.max_upload_mb = max_upload_mb
         self.max_song_minutes = max_song_minutes
-        self.jobs = JobStore(self.data, {"data": str(self.data), "cache": str(self.cache), "device": device})
+        self.keep_uploads_hours = keep_uploads_hours
+        # A worker resolves the default cache itself; the demo's sizes go as a dict (None: DemoPlan()).
+        self.jobs = JobStore(self.data, {"data": str(self.data), "cache": self._cache and str(self._cache),
+                                         "device": device, "demo": demo and dataclasses.asdict(demo)})
         self._songs_lock = threading.Lock()
+        self._uploads_lock = threading.Lock()  # a cleanup never removes an upload a job is being made from
+        # The start's cleanup runs aside: its cache lookup imports torch, which would hold the page back seconds.
+        self.start_cleanup = threading.Thread(target=self.clean_uploads, name="dancesynth-clean-uploads", daemon=True)
+
+    @functools.cached_property
+    def cache(self) -> Path:
+        """The appearance-model cache (its default is looked up on first use: that import loads torch)."""
+        from stage2_video.cache import default_cache_dir
+
+        return self._cache or default_cache_dir()
 
     # --- uploads -----------------------------------------------------------------------------------------
     def too_big(self, name: str, size: int) -> UploadTooLarge:
@@ -140,7 +162,36 @@ class WebApp:
             raise
         meta = {"id": folder.name, "kind": kind, "name": name, "duration": duration, "size": size}
         (folder / UPLOAD_META).write_text(json.dumps(meta))
+        self.clean_uploads()
         return meta
+
+    def clean_uploads(self) -> list[str]:
+        """Remove the upload folders older than ``keep_uploads_hours`` (by their ``upload.json``) that no queued or
+        running job uses and no cache entry's ``source.json`` names as its video; returns the removed ids."""
+        from stage2_video.cache import SOURCE_FILE
+
+        root = self.data / UPLOADS
+        if not root.is_dir():
+            return []
+        oldest = time.time() - 3600 * self.keep_uploads_hours
+        with self._uploads_lock:
+            used = {str(v) for job in self.jobs.active() for v in job["params"].values()}
+            for source in self.cache.glob(f"*/{SOURCE_FILE}"):
+                with contextlib.suppress(OSError, ValueError):
+                    used.add(str(json.loads(source.read_text()).get("video")))
+            removed = []
+            for folder in root.iterdir():
+                meta = folder / UPLOAD_META
+                # A folder without upload.json is an upload being saved, or one a killed server left.
+                with contextlib.suppress(FileNotFoundError):
+                    if (meta if meta.is_file() else folder).stat().st_mtime >= oldest:
+                        continue
+                    if not any(path.startswith(f"{folder}/") for path in used):
+                        shutil.rmtree(folder, ignore_errors=True)
+                        removed.append(folder.name)
+        if removed:
+            logger.info(f"removed {len(removed)} upload(s) older than {self.keep_uploads_hours:g} h")
+        return removed
 
     def _check_song(self, path: Path) -> float:
         from dancesynth.core.media import load_song
@@ -287,7 +338,7 @@ class WebApp:
     def create_job(self, body: dict) -> dict:
         """Check a job request (one sentence for what is wrong) and queue it."""
         kind = body.get("kind")
-        with _no_error_paths(self.data):
+        with _no_error_paths(self.data), self._uploads_lock:
             if kind == "dance":
                 return self._dance_job(body)
             if kind in ("train", "preview"):
@@ -369,11 +420,14 @@ class WebApp:
 
 
 def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_upload_mb: float = 500.0,
-               max_song_minutes: float = 10.0, pose_models: Path | None = None) -> FastAPI:
+               max_song_minutes: float = 10.0, pose_models: Path | None = None, keep_uploads_hours: float = 24.0,
+               demo: DemoPlan | None = None) -> FastAPI:
     """The web app over the data folder ``data`` (uploads, built-in songs, jobs and their outputs), the
     appearance-model cache ``cache`` (default: the one `dance --target` uses) and the folder of stage-1 runs
-    ``pose_models`` offered besides the built-in pose model."""
-    web = WebApp(data, cache, device, max_upload_mb, max_song_minutes, pose_models)
+    ``pose_models`` offered besides the built-in pose model. Uploads are kept ``keep_uploads_hours`` (see
+    :meth:`WebApp.clean_uploads`); the Demo tab runs ``demo`` (default ``DemoPlan()``)."""
+    web = WebApp(data, cache, device, max_upload_mb, max_song_minutes, pose_models, keep_uploads_hours, demo)
+    web.start_cleanup.start()
 
     @contextlib.asynccontextmanager
     async def lifespan(app: FastAPI):
@@ -483,10 +537,11 @@ async def _in_thread(fn, *args):
 
 
 def serve(host: str, port: int, data: Path, cache: Path | None = None, device: str = "auto",
-          max_upload_mb: float = 500.0, max_song_minutes: float = 10.0, pose_models: Path | None = None) -> None:
+          max_upload_mb: float = 500.0, max_song_minutes: float = 10.0, pose_models: Path | None = None,
+          keep_uploads_hours: float = 24.0) -> None:
     """Run the web app until Ctrl-C."""
     import uvicorn
 
-    app = create_app(data, cache, device, max_upload_mb, max_song_minutes, pose_models)
+    app = create_app(data, cache, device, max_upload_mb, max_song_minutes, pose_models, keep_uploads_hours)
     logger.info(f"dancesynth web app on http://{host}:{port} (data in {app.state.web.data}; Ctrl-C stops it)")
     uvicorn.run(app, host=host, port=port, log_level="warning")

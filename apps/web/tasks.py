@@ -101,12 +101,14 @@ def preview_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
 
 
 def demo_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
-    """:func:`apps.demo.run_demo` into ``DATA/demo`` (kept when cancelled: the demo continues where it stopped)."""
-    from apps.demo import run_demo
+    """:func:`apps.demo.run_demo` into ``DATA/demo`` (kept when cancelled: the demo continues where it stopped), at
+    the sizes of the server's ``DemoPlan`` (``settings["demo"]``, its fields; None: the default plan)."""
+    from apps.demo import DemoPlan, run_demo
 
     data = Path(settings["data"])
     folder = data / DEMO_FOLDER
-    run_demo(folder, minutes=params["minutes"], seed=params.get("seed", 0), device=settings["device"])
+    plan = DemoPlan(**settings["demo"]) if settings.get("demo") else None
+    run_demo(folder, minutes=params["minutes"], seed=params.get("seed", 0), device=settings["device"], plan=plan)
     return {name: _relative(folder / name, data) for name in DEMO_FILES if (folder / name).is_file()}, {}
 
 

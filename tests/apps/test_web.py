@@ -21,10 +21,11 @@ import torch
 torch.set_num_threads(1)
 
 import uvicorn  # noqa: E402
-from playwright.sync_api import Page, expect, sync_playwright  # noqa: E402
+from playwright.sync_api import Locator, Page, expect, sync_playwright  # noqa: E402
 
+from apps.demo import DemoPlan  # noqa: E402
 from apps.web.server import create_app  # noqa: E402
-from dancesynth.core.media import probe_streams, write_video  # noqa: E402
+from dancesynth.core.media import probe_streams, probe_video, write_video  # noqa: E402
 from dancesynth.core.skeleton import PoseSequence  # noqa: E402
 from stage1_pose.train import train  # noqa: E402
 from stage2_video.cache import SOURCE_FILE, entry_path  # noqa: E402
@@ -38,6 +39,10 @@ TINY_VIDEO = {"width": 32, "height": 32, "ngf": 8, "n_downsample": 2, "n_blocks"
 MAX_UPLOAD_MB, MAX_SONG_MINUTES = 2.0, 0.75
 POSE_RUN = "mine/lstm"
 JOB_TIMEOUT_MS = 180_000
+REAL_CLIP = Path(__file__).parents[1] / "data" / "real_person" / "sports2d_demo_640x360.mp4"
+# tests/apps/test_demo.py's toy demo, its training cut to min_train_minutes: the dance step keeps the rest.
+TOY_DEMO = DemoPlan(clips=6, clip_seconds=12.0, target_seconds=4.0, target_size=128, dance_seconds=3.0,
+                    finish_minutes=1.2, min_train_minutes=0.1, preset="small")
 
 
 def _song(path: Path, seconds: float, sr: int = 8000) -> Path:
@@ -71,7 +76,7 @@ def server(tiny_stage1_dataset, tmp_path_factory):
                                                  "preset": "small"}))
     train("lstm", tiny_stage1_dataset, root / "pose_models" / POSE_RUN, overrides=TINY_LSTM, epochs=1, device="cpu")
     app = create_app(root / "data", root / "cache", device="cpu", max_upload_mb=MAX_UPLOAD_MB,
-                     max_song_minutes=MAX_SONG_MINUTES, pose_models=root / "pose_models")
+                     max_song_minutes=MAX_SONG_MINUTES, pose_models=root / "pose_models", demo=TOY_DEMO)
     port = _free_port()
     uv = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, log_level="warning"))
     thread = threading.Thread(target=uv.run, daemon=True)
@@ -142,6 +147,24 @@ def _start_dance(page: Page, song: Path, model: str, duration: str = "", pose_mo
     return page.locator(".job[data-kind=dance]").first.get_attribute("data-job")
 
 
+def _press(page: Page, button: str, kind: str) -> Locator:
+    """Press ``button`` and return the card of the ``kind`` job it queued."""
+    before = page.locator(f".job[data-kind={kind}]").count()
+    page.click(button)
+    expect(page.locator(f".job[data-kind={kind}]")).to_have_count(before + 1)
+    job = page.locator(f".job[data-kind={kind}]").first.get_attribute("data-job")
+    return page.locator(f".job[data-job='{job}']")
+
+
+def _wait_done(card: Locator, root: Path) -> None:
+    """Wait for the job of ``card`` to be done; a failed job's log tells why."""
+    try:
+        expect(card).to_have_class(re.compile(r"\bdone\b"), timeout=JOB_TIMEOUT_MS)
+    except AssertionError as e:
+        log = root / "data" / "jobs" / card.get_attribute("data-job") / "log.txt"
+        raise AssertionError(f"{e}\n{log.read_text() if log.is_file() else 'no log'}") from None
+
+
 def test_dance_from_an_uploaded_song_to_a_downloaded_video(server, page, shots, tmp_path):
     _, root, entry = server
     song = _song(tmp_path / "my song.wav", 3.0)
@@ -165,6 +188,28 @@ def test_dance_from_an_uploaded_song_to_a_downloaded_video(server, page, shots, 
     assert streams["video_codec"] == "h264" and streams["video_frames"] > 0
     assert streams["audio_codec"] == "aac" and abs(streams["audio_duration"] - 2.0) < 0.2
     _screenshot(page, root, shots / "dance.png")
+
+
+def test_a_song_and_a_video_of_a_person_give_a_downloaded_dance_and_a_cached_model(server, page, tmp_path):
+    """The issue's done-when: from a song and a video of a person to a downloaded dance, no terminal."""
+    _, root, _ = server
+    _upload(page, "#song-file", _song(tmp_path / "song.wav", 3.0), "#song-status")
+    _upload(page, "#dance-video", REAL_CLIP, "#dance-video-status")
+    assert page.is_checked("input[name=target-source][value=video]")
+    page.fill("#dance-minutes", "0.05")  # the server's smallest training budget
+    page.fill("#duration", "2")
+    card = _press(page, "#dance-button", "dance")
+    _wait_done(card, root)
+    assert "--target" in card.locator("code.command").text_content()
+    with page.expect_download() as download:
+        card.locator("a.download").click()
+    path = tmp_path / "downloaded.mp4"
+    download.value.save_as(path)
+    streams, info = probe_streams(path), probe_video(path)
+    assert streams["video_codec"] == "h264" and (info.width, info.height) == (640, 360)
+    assert streams["audio_codec"] == "aac" and abs(streams["audio_duration"] - 2.0) < 0.2
+    page.click("nav button[data-tab=models]")
+    expect(page.locator("#models-table td", has_text=REAL_CLIP.name)).to_have_count(1)
 
 
 def test_bad_input_gets_its_sentence_and_breaks_nothing(server, page, tmp_path):
@@ -251,10 +296,26 @@ def test_jobs_queue_survive_a_reload_show_progress_and_cancel(server, page, brow
 
 def test_demo_tab_checks_its_budget(page, shots):
     page.click("nav button[data-tab=demo]")
+    before = page.locator(".job[data-kind=demo]").count()
     page.fill("#demo-minutes", "0.5")
     page.click("#demo-button")
     expect(page.locator("#demo-error")).to_contain_text("must be between 1.01 and 1440")
-    expect(page.locator(".job[data-kind=demo]")).to_have_count(0)
+    expect(page.locator(".job[data-kind=demo]")).to_have_count(before)
     page.fill("#demo-minutes", "15")
     page.evaluate("document.querySelector('#demo-error').textContent = ''")
     page.screenshot(path=shots / "demo.png", full_page=True)
+
+
+def test_demo_tab_runs_the_demo_and_shows_its_dance_and_summary(server, page):
+    _, root, _ = server
+    page.click("nav button[data-tab=demo]")
+    page.fill("#demo-minutes", "1.2")
+    card = _press(page, "#demo-button", "demo")
+    _wait_done(card, root)
+    summary = card.locator(".markdown")
+    expect(summary).to_contain_text("beat hit rate")
+    expect(summary).to_contain_text("SSIM")
+    expect(summary.locator("table").first).to_contain_text("real dance")
+    handle = card.locator("video[data-output='dance.mp4']").element_handle()
+    page.wait_for_function("v => v.readyState >= 2 && v.duration > 0", arg=handle, timeout=30_000)
+    assert card.locator("a.download").get_attribute("href").endswith("dance.mp4?download=1")

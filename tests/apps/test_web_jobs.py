@@ -1,8 +1,17 @@
-"""The web app's job store across a server restart (no browser, no worker)."""
+"""The web app's job store across a server restart, and its upload retention (no browser, no worker)."""
 
+import io
 import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+import soundfile
+from fastapi import UploadFile
 
 from apps.web.jobs import JobStore, parse_progress
+from apps.web.server import create_app
 
 
 def test_a_job_left_running_by_a_stopped_server_becomes_interrupted_and_loses_its_partial_outputs(tmp_path):
@@ -34,3 +43,37 @@ def test_progress_is_the_latest_progress_line():
     assert (p["what"], p["done"], p["total"], p["unit"], p["left"], p["took"]) == \
         ("rendering", 480, 480, "frame", None, "2m00s")
     assert parse_progress("no progress here\n") is None
+
+
+def _upload(data: Path, upload_id: str, hours_old: float) -> Path:
+    """An upload folder as the server leaves it, its upload.json ``hours_old`` hours old."""
+    folder = data / "uploads" / upload_id
+    folder.mkdir(parents=True)
+    (folder / "clip.mp4").write_bytes(b"video")
+    (folder / "upload.json").write_text(json.dumps({"id": upload_id, "kind": "video", "name": "clip.mp4"}))
+    when = time.time() - hours_old * 3600
+    os.utime(folder / "upload.json", (when, when))
+    return folder
+
+
+def test_old_uploads_are_removed_unless_a_queued_job_or_a_cached_model_needs_them(tmp_path):
+    data, cache = tmp_path / "data", tmp_path / "cache"
+    unused, fresh = _upload(data, "a" * 12, 30), _upload(data, "b" * 12, 1)
+    queued, trained = _upload(data, "c" * 12, 30), _upload(data, "d" * 12, 30)
+    JobStore(data, {}).create("dance", "a dance", {"target": str(queued / "clip.mp4"), "seed": 0})
+    (cache / "0123abcd-small").mkdir(parents=True)
+    (cache / "0123abcd-small" / "source.json").write_text(json.dumps({"video": str(trained / "clip.mp4")}))
+
+    # At start: create_app cleans in the background (it starts no job: the app's lifespan does).
+    web = create_app(data, cache, device="cpu", keep_uploads_hours=24.0).state.web
+    web.start_cleanup.join(60)
+    assert not unused.exists() and fresh.is_dir() and queued.is_dir() and trained.is_dir()
+
+    # With a shorter retention, the next upload's cleanup takes the hour-old one; what a job or a model needs stays.
+    web.keep_uploads_hours = 0.5
+    song = io.BytesIO()
+    soundfile.write(song, np.sin(np.arange(16000) / 8000 * 2 * np.pi * 220), 8000, format="WAV")
+    song.seek(0)
+    saved = web.save_upload(UploadFile(song, filename="song.wav"), "song")
+    assert not fresh.exists() and queued.is_dir() and trained.is_dir()
+    assert sorted(p.name for p in (data / "uploads").iterdir()) == sorted([queued.name, trained.name, saved["id"]])

@@ -222,14 +222,21 @@ function showOutputs(c, job) {
     out.replaceChildren(el("div", { class: "videos" }, video(job, "dance", "the dance"),
       video(job, "side_by_side", "skeleton | person", true), video(job, "skeleton", "skeleton")),
       el("a", { href: fileUrl(job, "dance", true), download: "dance.mp4", class: "download", text: "Download the dance (mp4)" }));
+    if (job.params.target) loadModels();  // its video's appearance model trained into the cache
   } else if (job.kind === "preview") {
     out.replaceChildren(el("div", { class: "videos" }, el("figure", {}, el("img", { src: fileUrl(job, "image"), alt: "tracked skeleton" }),
       el("figcaption", { text: `person found in ${Math.round(100 * job.info.found)}% of the first frames` })),
       video(job, "preview", "the first seconds with the tracked skeleton")));
   } else if (job.kind === "demo") {
+    // Its videos first, then its summary (metrics, frames, links): what `dancesynth demo` leaves in its folder.
+    const videos = [["dance.mp4", "the dance"], ["side_by_side.mp4", "skeleton | person"], ["skeleton.mp4", "skeleton"]]
+      .filter(([name]) => name in job.outputs).map(([name, caption]) => video(job, name, caption, name === "side_by_side.mp4"));
+    const summary = el("div", { class: "markdown" });
+    out.replaceChildren(el("div", { class: "videos" }, ...videos), summary);
+    if ("dance.mp4" in job.outputs) summary.before(el("a", { href: fileUrl(job, "dance.mp4", true), download: "dance.mp4",
+      class: "download", text: "Download the dance (mp4)" }));
     fetch(fileUrl(job, "summary.md")).then(r => r.text()).then(text => {
-      out.replaceChildren(el("div", { class: "markdown" }));
-      $(".markdown", out).innerHTML = markdown(text, name => (name in job.outputs ? fileUrl(job, name) : name));
+      summary.innerHTML = markdown(text, name => (name in job.outputs ? fileUrl(job, name) : name));
     });
   } else if (job.kind === "train") {
     loadModels();
