@@ -146,8 +146,8 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
     if appearance.bone_lengths is not None:
         poses = retarget_onto(poses, appearance.bone_lengths)
     poses = target_poses(appearance, poses)
-    compositor = None if crop else scene_compositor(video_model, appearance.framing,
-                                                    output_size(appearance.canvas, height))
+    framings = appearance.framing.frames(poses)
+    compositor = None if crop else scene_compositor(video_model, output_size(appearance.canvas, height))
     width, out_height = ((appearance.config.width, appearance.config.height) if compositor is None
                          else compositor.size)
     outputs = [(Path(out), width)]
@@ -160,14 +160,14 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
         writers = [stack.enter_context(VideoWriter(path, poses.fps, w, out_height, audio=segment,
                                                      audio_sr=SONG_SAMPLE_RATE))
                    for path, w in outputs]
-        rendered = render_frames(appearance, poses, normalize=False)
-        for keypoints, frame in track(zip(poses.keypoints, rendered), total=len(poses), desc="rendering",
-                                     unit="frame", disable=not progress):
+        rendered = render_frames(appearance, poses, normalize=False, framings=framings)
+        for keypoints, framing, frame in track(zip(poses.keypoints, framings, rendered), total=len(poses),
+                                              desc="rendering", unit="frame", disable=not progress):
             if compositor is not None:
-                frame = compositor.frame(frame, keypoints)
+                frame = compositor.frame(frame, keypoints, framing)
             writers[0].write(frame)
             if len(writers) > 1:
-                label = (label_map(keypoints, appearance.framing) if compositor is None
+                label = (label_map(keypoints, framing) if compositor is None
                          else compositor.skeleton(keypoints))
                 if skeleton_preview is not None:
                     writers[1].write(label)

@@ -2,7 +2,8 @@
 
 Renders the held-out part of the target video (the last ``val_fraction``, never trained on) from its poses,
 frame after frame as `dancesynth render` does, and prints:
-  * SSIM and PSNR (dB) of generated vs real frames (model resolution);
+  * SSIM and PSNR (dB) of generated vs real frames (model resolution), over the frames whose pose has a torso
+    (the ones the trainer learns from and validates on);
   * PCK@0.1 (torso size) between the pose BlazePose re-extracts from the generated frames and the commanded
     pose (the run's poses.npz, i.e. what the model was asked to draw); the same extraction on the real frames
     is printed as the ceiling the extractor allows. Frames go to BlazePose as decoded arrays (no re-encoding).
@@ -29,18 +30,19 @@ from dancesynth.core.progress import track
 from dancesynth.core.skeleton import JOINT_INDEX, PoseSequence
 from stage2_video.data import POSES_FILE, frames_file, split_ranges
 from stage2_video.extract import ExtractConfig, extract_frames
-from stage2_video.framing import Framing
+from stage2_video.framing import Framing, usable_frames
 from stage2_video.models.pix2pixhd import Pix2PixHDConfig
 from stage2_video.quality import pck, psnr, ssim
 from stage2_video.render import load_appearance_model, render_frames
 from stage2_video.train import KIND
 
 
-def framed(seq: PoseSequence, framing: Framing) -> PoseSequence:
-    """``seq`` in model-image pixels."""
+def framed(seq: PoseSequence, framings: list[Framing]) -> PoseSequence:
+    """``seq`` in model-image pixels, frame t framed by ``framings[t]``."""
     kp = seq.keypoints.copy()
-    kp[..., :2] = framing.points(kp[..., :2])
-    return PoseSequence(kp, seq.fps, framing.out_width, framing.out_height)
+    for t, framing in enumerate(framings):
+        kp[t, :, :2] = framing.points(kp[t, :, :2])
+    return PoseSequence(kp, seq.fps, framings[0].out_width, framings[0].out_height)
 
 
 def extracted(frames: list[np.ndarray], fps: float) -> PoseSequence:
@@ -66,6 +68,7 @@ class HeldOut:
 
     frames: range  # held-out frame indices of the target video
     commanded: PoseSequence  # their poses (canvas pixels)
+    framings: list[Framing]  # how each was framed
     generated: list[np.ndarray]
     reals: list[np.ndarray]
     ssim: float
@@ -85,20 +88,25 @@ def held_out_quality(run_dir: Path, frames: int = 0, device: str = "auto", groun
     _, held_out = split_ranges(len(poses), config.val_fraction)
     stop = min(held_out.start + frames, held_out.stop) if frames else held_out.stop
     commanded = poses.slice_frames(held_out.start, stop)
-    generated = list(track(render_frames(model, commanded, normalize=False), total=len(commanded), desc="render"))
+    # Framed as in training: the following box's path is smoothed over the whole video, not the slice.
+    framings = model.framing.frames(poses)[held_out.start:stop]
+    generated = list(track(render_frames(model, commanded, normalize=False, framings=framings),
+                           total=len(commanded), desc="render"))
     reals = [np.asarray(real[t]) for t in range(held_out.start, stop)]
-    target = framed(commanded, model.framing)
+    target = framed(commanded, framings)
     from_generated, from_real = extracted(generated, poses.fps), extracted(reals, poses.fps)
     rows = [("generated vs commanded", pck(from_generated, target)),
             ("real frames vs commanded (ceiling)", pck(from_real, target))]
     if ground_truth:
         truth = PoseSequence.load(ground_truth).slice_frames(held_out.start, stop)
-        truth = without_small_toes(framed(truth, model.framing))
+        truth = without_small_toes(framed(truth, framings))
         rows += [("generated vs true joints", pck(from_generated, truth)),
                  ("real frames vs true joints", pck(from_real, truth))]
-    return HeldOut(range(held_out.start, stop), commanded, generated, reals,
-                   float(np.mean([ssim(g, r) for g, r in zip(generated, reals)])),
-                   float(np.mean([psnr(g, r) for g, r in zip(generated, reals)])), rows)
+    # Scored where the trainer validates: frames whose pose has a plausible torso.
+    scored = [(g, r) for g, r, ok in zip(generated, reals, usable_frames(poses)[held_out.start:stop]) if ok]
+    return HeldOut(range(held_out.start, stop), commanded, framings, generated, reals,
+                   float(np.mean([ssim(g, r) for g, r in scored])), float(np.mean([psnr(g, r) for g, r in scored])),
+                   rows)
 
 
 def print_quality(run_dir: Path, result: HeldOut) -> None:

@@ -65,9 +65,10 @@ def strip(images: list[np.ndarray], height: int = 240) -> np.ndarray:
 def scene_frames(run: Path, clip: Path, held_out) -> tuple[list[np.ndarray], list[np.ndarray]]:
     """(real, composited) held-out frames of the whole scene at the clip's resolution."""
     model = load_appearance_model(run, "cpu", optimize=False)
-    compositor = scene_compositor(run, model.framing, model.canvas)
+    compositor = scene_compositor(run, model.canvas)
     reals = [frame for t, frame in enumerate(read_frames(clip)) if t in held_out.frames]
-    composited = [compositor.frame(g, kp) for g, kp in zip(held_out.generated, held_out.commanded.keypoints)]
+    composited = [compositor.frame(g, kp, f) for g, kp, f in zip(held_out.generated, held_out.commanded.keypoints,
+                                                                   held_out.framings)]
     return reals, composited
 
 

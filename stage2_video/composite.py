@@ -272,27 +272,33 @@ def load_plate(run_dir: str | os.PathLike) -> np.ndarray:
 class Compositor:
     """Generated model-resolution frames -> full frames of the target's scene at ``size``.
 
+    Each frame comes with the :class:`Framing` its model image was cut by (one per frame: the box may follow
+    the person).
+
     Args:
-        framing: how the model's images were cut from the target's canvas.
         plate: ``[H, W, 3]`` uint8 background plate at the canvas size.
         size: ``(width, height)`` of the output in pixels (the canvas, or scaled with its aspect kept).
         torso: the target's torso length in canvas pixels (:func:`body_scale` of its poses); sizes the mask.
     """
 
-    def __init__(self, framing: Framing, plate: np.ndarray, size: tuple[int, int], torso: float) -> None:
-        self.framing = framing
+    def __init__(self, plate: np.ndarray, size: tuple[int, int], torso: float) -> None:
         self.canvas = (plate.shape[1], plate.shape[0])
         self.size = (int(size[0]), int(size[1]))
         self.sx, self.sy = self.size[0] / self.canvas[0], self.size[1] / self.canvas[1]
         shrink = self.sx < 1 or self.sy < 1
         self.plate = cv2.resize(plate, self.size, interpolation=cv2.INTER_AREA if shrink else cv2.INTER_CUBIC)
         self.torso = float(torso) * self.sy
+
+    def box(self, framing: Framing) -> tuple[float, float, float, float]:
+        """The crop box of ``framing`` in output pixels (x0, y0, x1, y1)."""
         f = framing
-        box = (f.x0 * self.sx, f.y0 * self.sy, (f.x0 + f.crop_width) * self.sx, (f.y0 + f.crop_height) * self.sy)
-        self.box = box
-        # The box's part inside the output, in whole pixels: the only region a generated frame touches.
-        self.region = (max(0, math.floor(box[0])), max(0, math.floor(box[1])),
-                       min(self.size[0], math.ceil(box[2])), min(self.size[1], math.ceil(box[3])))
+        return f.x0 * self.sx, f.y0 * self.sy, (f.x0 + f.crop_width) * self.sx, (f.y0 + f.crop_height) * self.sy
+
+    def region(self, framing: Framing) -> tuple[int, int, int, int]:
+        """The box's part inside the output, in whole pixels: the only region a generated frame touches."""
+        box = self.box(framing)
+        return (max(0, math.floor(box[0])), max(0, math.floor(box[1])),
+                min(self.size[0], math.ceil(box[2])), min(self.size[1], math.ceil(box[3])))
 
     def to_output(self, xy: np.ndarray) -> np.ndarray:
         """``[..., 2]`` canvas pixels -> output pixels (pixel-centre convention of ``cv2.resize``)."""
@@ -301,21 +307,21 @@ class Compositor:
         out[..., 1] = (out[..., 1] + 0.5) * self.sy - 0.5
         return out
 
-    def _uncrop(self, generated: np.ndarray) -> np.ndarray:
+    def _uncrop(self, generated: np.ndarray, f: Framing) -> np.ndarray:
         """The generated image without padding, resampled onto the region: ``[rh, rw, 3]`` uint8."""
-        f = self.framing
         inner = generated[f.pad_y:f.pad_y + f.inner_height, f.pad_x:f.pad_x + f.inner_width]
         ax, ay = f.crop_width / f.inner_width * self.sx, f.crop_height / f.inner_height * self.sy
-        x0, y0, x1, y1 = self.region
+        x0, y0, x1, y1 = self.region(f)
         # inner pixel i (centre) -> canvas (i + 0.5) * crop / inner - 0.5 + x0 -> output, minus the region origin
         m = np.array([[ax, 0, 0.5 * ax + f.x0 * self.sx - 0.5 - x0],
                       [0, ay, 0.5 * ay + f.y0 * self.sy - 0.5 - y0]], np.float64)
         return cv2.warpAffine(inner, m, (x1 - x0, y1 - y0), flags=cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
 
-    def alpha(self, keypoints: np.ndarray) -> np.ndarray:
-        """``[rh, rw]`` float32 in [0, 1]: the generated frame's weight over the region for one ``[25, 3]``
-        pose in canvas pixels (1 on the person, a Gaussian fall-off around, 0 at the box's inner edges)."""
-        x0, y0, x1, y1 = self.region
+    def alpha(self, keypoints: np.ndarray, framing: Framing) -> np.ndarray:
+        """``[rh, rw]`` float32 in [0, 1]: the generated frame's weight over the region of ``framing`` for one
+        ``[25, 3]`` pose in canvas pixels (1 on the person, a Gaussian fall-off around, 0 at the box's inner
+        edges)."""
+        x0, y0, x1, y1 = self.region(framing)
         torso = torso_length(np.c_[self.to_output(keypoints[:, :2]), keypoints[:, 2]], self.torso)
         sigma = FEATHER_SIGMA * torso
         scale = min(1.0, MASK_SIGMA_PIXELS / max(sigma, 1e-6))
@@ -324,14 +330,15 @@ class Compositor:
         draw_person(small, xy, keypoints[:, 2] >= MIN_CONFIDENCE, torso * scale, COMPOSITE_MARGIN * torso * scale)
         soft = cv2.GaussianBlur(small.astype(np.float32) / 255.0, (0, 0), sigma * scale)
         soft = cv2.resize(soft, (x1 - x0, y1 - y0), interpolation=cv2.INTER_LINEAR)
-        return soft * self._edge_fade(EDGE_FADE * torso)
+        return soft * self._edge_fade(EDGE_FADE * torso, framing)
 
-    def _edge_fade(self, width: float) -> np.ndarray:
+    def _edge_fade(self, width: float, framing: Framing) -> np.ndarray:
         """``[rh, rw]`` ramp from 0 at each box edge that lies inside the canvas to 1 at ``width`` pixels in."""
-        x0, y0, x1, y1 = self.region
+        x0, y0, x1, y1 = self.region(framing)
+        box = self.box(framing)
         ramps = []
-        for lo, hi, start, stop, size in ((self.box[0], self.box[2], x0, x1, self.size[0]),
-                                          (self.box[1], self.box[3], y0, y1, self.size[1])):
+        for lo, hi, start, stop, size in ((box[0], box[2], x0, x1, self.size[0]),
+                                          (box[1], box[3], y0, y1, self.size[1])):
             centres = np.arange(start, stop, dtype=np.float32) + 0.5
             ramp = np.ones_like(centres)
             if lo > 0:
@@ -341,15 +348,16 @@ class Compositor:
             ramps.append(ramp)
         return ramps[1][:, None] * ramps[0][None, :]
 
-    def frame(self, generated: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
-        """One generated ``[model height, model width, 3]`` uint8 frame and the ``[25, 3]`` pose (canvas pixels)
-        it was rendered from -> ``[height, width, 3]`` uint8 frame of the scene at the output size."""
+    def frame(self, generated: np.ndarray, keypoints: np.ndarray, framing: Framing) -> np.ndarray:
+        """One generated ``[model height, model width, 3]`` uint8 frame, the ``[25, 3]`` pose (canvas pixels)
+        it was rendered from and the framing its label map was drawn in -> ``[height, width, 3]`` uint8 frame of
+        the scene at the output size."""
         out = self.plate.copy()
-        x0, y0, x1, y1 = self.region
+        x0, y0, x1, y1 = self.region(framing)
         if x1 <= x0 or y1 <= y0:
             return out
-        a = self.alpha(np.asarray(keypoints, np.float32))
-        out[y0:y1, x0:x1] = cv2.blendLinear(self._uncrop(generated), out[y0:y1, x0:x1], a, 1.0 - a)
+        a = self.alpha(np.asarray(keypoints, np.float32), framing)
+        out[y0:y1, x0:x1] = cv2.blendLinear(self._uncrop(generated, framing), out[y0:y1, x0:x1], a, 1.0 - a)
         return out
 
     def skeleton(self, keypoints: np.ndarray) -> np.ndarray:
@@ -361,11 +369,11 @@ class Compositor:
         return draw_pose(np.zeros((self.size[1], self.size[0], 3), np.uint8), kp)
 
 
-def scene_compositor(run_dir: str | os.PathLike, framing: Framing, size: tuple[int, int]) -> Compositor:
+def scene_compositor(run_dir: str | os.PathLike, size: tuple[int, int]) -> Compositor:
     """The :class:`Compositor` of an appearance model's run (its plate and torso length) for output ``size``."""
     plate = load_plate(run_dir)
     poses = Path(run_dir) / POSES_FILE
     if not poses.is_file():
         raise DancesynthError(f"{run_dir} has no {POSES_FILE} to size the person's mask by; "
                               "pass --crop to write the model's crop instead.")
-    return Compositor(framing, plate, size, body_scale(PoseSequence.load(poses)))
+    return Compositor(plate, size, body_scale(PoseSequence.load(poses)))

@@ -5,7 +5,9 @@ as a uint8 ``.npy`` memory map, so memory stays flat for long videos and resumin
 are cached as ``poses.npz``. Each cache has a ``<name>.key`` file, written after the cache is complete, naming
 what it was made from (the video's SHA-256 and the options that shape it), so a cache left by an interrupted
 run or made from another video is rebuilt instead of used. The split is by time: the last ``val_fraction`` of
-the video is held out.
+the video is held out. Frames where the person's torso is absent or has an implausible length (e.g. a jump the
+pose estimator lost or mistook) are neither trained on nor scored: their label maps would teach the model to
+draw the person from a skeleton that is not theirs.
 """
 
 from __future__ import annotations
@@ -16,7 +18,7 @@ import hashlib
 import json
 import os
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +30,7 @@ from dancesynth.core.fileio import atomic_path
 from dancesynth.core.media import probe_video, read_frames
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence
-from stage2_video.framing import Framing, label_map
+from stage2_video.framing import Framing, VideoFraming, label_map, usable_frames
 
 POSES_FILE = "poses.npz"
 # A target video's person must score this many times any other person's prominence when first found.
@@ -36,7 +38,7 @@ TARGET_MIN_LEAD = 1.25
 KEY_SUFFIX = ".key"
 
 
-def frames_file(framing: Framing) -> str:
+def frames_file(framing: VideoFraming) -> str:
     return f"frames_{framing.out_width}x{framing.out_height}.npy"
 
 
@@ -132,11 +134,14 @@ def check_poses_match(seq: PoseSequence, video: Path) -> PoseSequence:
     return seq
 
 
-def cache_frames(video: Path, framing: Framing, run_dir: Path, num_frames: int) -> np.ndarray:
-    """Framed uint8 frames ``[T, H, W, 3]`` (memory-mapped), decoded once and cached in ``run_dir``; a cache
-    made from another video, framing or frame count is rebuilt."""
+def cache_frames(video: Path, framing: VideoFraming, run_dir: Path, poses: PoseSequence) -> np.ndarray:
+    """Framed uint8 frames ``[T, H, W, 3]`` (memory-mapped; frame t framed as ``framing.frames(poses)[t]``),
+    decoded once and cached in ``run_dir``; a cache made from another video, framing or poses is rebuilt."""
     path = run_dir / frames_file(framing)
-    key = _cache_key(video, framing=framing.to_dict(), frames=num_frames)
+    boxes = framing.frames(poses)
+    num_frames = len(boxes)
+    corners = hashlib.sha256(np.array([(f.x0, f.y0) for f in boxes], np.int64).tobytes()).hexdigest()
+    key = _cache_key(video, framing=framing.to_dict(), frames=num_frames, boxes=corners)
     if _is_cached(path, key):
         return np.load(path, mmap_mode="r")
     count = 0
@@ -146,7 +151,7 @@ def cache_frames(video: Path, framing: Framing, run_dir: Path, num_frames: int) 
         for frame in track(read_frames(video), total=num_frames, desc="frames", unit="frame"):
             if count == num_frames:
                 break
-            out[count] = framing.image(frame)
+            out[count] = boxes[count].image(frame)
             count += 1
         out.flush()
         del out
@@ -166,29 +171,36 @@ def split_ranges(num_frames: int, val_fraction: float) -> tuple[range, range]:
 
 @dataclass
 class TargetVideo:
-    """Framed frames and poses of the target video."""
+    """Framed frames and poses of the target video; ``framings[t]`` framed frame t, ``usable[t]`` says whether
+    frame t is fit to learn from (:func:`usable_frames`)."""
 
     frames: np.ndarray
     poses: PoseSequence
-    framing: Framing
+    framing: VideoFraming
+    framings: list[Framing] = field(init=False)
+    usable: np.ndarray = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.framings = self.framing.frames(self.poses)
+        self.usable = usable_frames(self.poses)
 
 
 class FramePairs(Dataset):
-    """Consecutive (previous, current) training pairs inside one frame range.
+    """Consecutive (previous, current) training pairs inside one frame range, both frames usable.
 
     Item: ``(label_prev, frame_prev, label_cur, frame_cur)``, each ``[3, H, W]`` float32 in [-1, 1].
     """
 
     def __init__(self, target: TargetVideo, frames: range) -> None:
         self.target = target
-        self.starts = range(frames.start, frames.stop - 1)
+        self.starts = [t for t in range(frames.start, frames.stop - 1) if target.usable[t] and target.usable[t + 1]]
 
     def __len__(self) -> int:
         return len(self.starts)
 
     def item(self, t: int) -> tuple[torch.Tensor, torch.Tensor]:
         """Label map and frame of frame ``t``."""
-        label = label_map(self.target.poses.keypoints[t], self.target.framing)
+        label = label_map(self.target.poses.keypoints[t], self.target.framings[t])
         return to_tensor(label), to_tensor(self.target.frames[t])
 
     def __getitem__(self, i: int) -> tuple[torch.Tensor, ...]:

@@ -2,7 +2,8 @@
 
 Pipeline per video: decode upright frames (:mod:`dancesynth.core.media` applies the container's rotation),
 follow one person with :class:`stage2_video.tracking.PersonTracker`, map BlazePose's 33 landmarks to
-BODY_25, fill lost joints by interpolation in time, smooth (:mod:`stage2_video.smoothing`).
+BODY_25, fill joints lost for at most ``max_fill_seconds`` by interpolation in time (longer losses stay absent,
+so no limb is drawn where the estimator saw none), smooth (:mod:`stage2_video.smoothing`).
 
 BlazePose -> BODY_25: Neck = mid-shoulders, MidHip = mid-hips (confidence = the smaller of the pair),
 heel = heel, big toe = foot index (BlazePose's toe-tip point). BlazePose has no small-toe point, so
@@ -53,6 +54,7 @@ class ExtractConfig:
         min_visibility: BlazePose visibility below which a landmark counts as absent.
         crop_size: side in pixels to which a tracking crop is resampled before BlazePose.
         max_missing_fraction: above this fraction of frames without the person, extraction fails.
+        max_fill_seconds: a joint lost for longer than this stays absent instead of being interpolated.
         tracker: person tracking thresholds.
         smoothing: temporal filter applied after gap filling.
     """
@@ -60,12 +62,15 @@ class ExtractConfig:
     min_visibility: float = 0.5
     crop_size: int = 384
     max_missing_fraction: float = 0.5
+    max_fill_seconds: float = 0.5
     tracker: TrackerConfig = field(default_factory=TrackerConfig)
     smoothing: SmoothingConfig = field(default_factory=SmoothingConfig)
 
     def __post_init__(self) -> None:
         if not (0 <= self.min_visibility <= 1 and 0 <= self.max_missing_fraction <= 1):
             raise DancesynthError("The minimum visibility and the largest missing fraction must be between 0 and 1.")
+        if self.max_fill_seconds < 0:
+            raise DancesynthError(f"The longest gap to fill must be 0 s or more, got {self.max_fill_seconds} s.")
         if self.crop_size < 64:
             raise DancesynthError(f"The crop size must be at least 64 pixels, got {self.crop_size}.")
 
@@ -242,7 +247,7 @@ def extract_frames(frames: Iterable[np.ndarray], fps: float, size: tuple[int, in
         raise DancesynthError(f"No person was found in {missing:.0%} of the frames in {source}; "
                               "use a video where one person is fully visible.")
     seq = PoseSequence(np.stack(raw), fps, size[0], size[1])
-    seq = smooth(interpolate_missing(seq), config.smoothing)
+    seq = smooth(interpolate_missing(seq, max_gap=round(config.max_fill_seconds * fps)), config.smoothing)
     return Extraction(seq, found, tracker.stats)
 
 

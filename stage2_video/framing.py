@@ -1,9 +1,11 @@
 """Pose sequences -> skeleton label maps at the model resolution, framed exactly like the video frames.
 
-A :class:`Framing` fixes, for one target video, which region of its canvas the model sees (a crop box in
-canvas pixels around where the person moves) and how that region is resized to the model's width x height:
-one uniform scale (aspect kept) and black padding, never stretching. Frames and poses go through the same
-framing, so a label map lines up with its frame pixel for pixel.
+A :class:`Framing` fixes, for one frame, which region of the canvas the model sees (a crop box in canvas
+pixels) and how that region is resized to the model's width x height: one uniform scale (aspect kept) and black
+padding, never stretching. Frames and poses go through the same framing, so a label map lines up with its frame
+pixel for pixel. A video is framed by a :data:`VideoFraming`: one fixed box around everywhere the person goes
+(:func:`person_framing`), or, when the person travels across the scene, a box of fixed size that follows them
+(:class:`FollowFraming`), so a person crossing the scene still fills the model's image.
 """
 
 from __future__ import annotations
@@ -13,15 +15,24 @@ from dataclasses import asdict, dataclass
 
 import cv2
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from dancesynth.core.draw import draw_pose
-from dancesynth.core.skeleton import PoseSequence
+from dancesynth.core.skeleton import NECK, ROOT, PoseSequence, body_scale
 
 MIN_CONFIDENCE = 0.05
 # Extra room around the joints' bounding box, as a share of its height (head above the nose, feet, motion blur).
 CROP_MARGIN = 0.15
 # Percentiles of joint positions that bound the crop: robust to a few bad detections.
 CROP_PERCENTILES = (0.5, 99.5)
+# A following box is used when the fixed box would be this many times taller than it (the person travels).
+FOLLOW_GAIN = 1.5
+# Standard deviation (seconds) of the Gaussian that smooths the following box's path, so it glides.
+FOLLOW_SMOOTH_SECONDS = 0.2
+# The following box holds the whole person in this share of the usable frames (a rarely raised hand may leave it).
+FOLLOW_COVERAGE = 95.0
+# A pose whose torso is outside this range of the video's median torso length is a false detection.
+TORSO_RANGE = (0.5, 1.5)
 
 
 @dataclass(frozen=True)
@@ -79,12 +90,57 @@ class Framing:
         out[self.pad_y:self.pad_y + self.inner_height, self.pad_x:self.pad_x + self.inner_width] = inner
         return out
 
+    def frames(self, seq: PoseSequence) -> list["Framing"]:
+        """The framing of each frame of ``seq``: this one for every frame."""
+        return [self] * len(seq)
+
     def to_dict(self) -> dict:
         return asdict(self)
 
     @classmethod
     def from_dict(cls, d: dict) -> "Framing":
         return cls(**d)
+
+
+@dataclass(frozen=True)
+class FollowFraming:
+    """A ``crop_width x crop_height`` box (canvas pixels) that follows the person: in each frame it is centred
+    on the person's torso (mid-hip height, between neck and mid-hip across), along a path smoothed over
+    ``smooth_seconds``; frames without a usable pose (:func:`usable_frames`) take the path interpolated from
+    their neighbours. The box is resized to ``out_width x out_height`` like :class:`Framing`."""
+
+    crop_width: int
+    crop_height: int
+    out_width: int
+    out_height: int
+    smooth_seconds: float = FOLLOW_SMOOTH_SECONDS
+
+    def centres(self, seq: PoseSequence) -> np.ndarray:
+        """``[T, 2]`` float64 box centres in canvas pixels (the canvas centre where no frame is usable)."""
+        present = usable_frames(seq)
+        if not present.any():
+            return np.tile([seq.width / 2, seq.height / 2], (len(seq), 1))
+        torso = np.stack([(seq.xy[:, NECK, 0] + seq.xy[:, ROOT, 0]) / 2, seq.xy[:, ROOT, 1]], axis=1)
+        t = np.arange(len(seq))
+        path = np.stack([np.interp(t, t[present], torso[present, c]) for c in (0, 1)], axis=1).astype(np.float64)
+        return gaussian_filter1d(path, self.smooth_seconds * seq.fps, axis=0, mode="nearest")
+
+    def frames(self, seq: PoseSequence) -> list[Framing]:
+        """The :class:`Framing` of each frame of ``seq`` (the box at its place in that frame)."""
+        corners = np.floor(self.centres(seq) - (self.crop_width / 2, self.crop_height / 2)).astype(int)
+        return [Framing(int(x0), int(y0), self.crop_width, self.crop_height, self.out_width, self.out_height)
+                for x0, y0 in corners]
+
+    def to_dict(self) -> dict:
+        return {"follow": asdict(self)}
+
+
+VideoFraming = Framing | FollowFraming
+
+
+def framing_from_dict(d: dict) -> VideoFraming:
+    """The inverse of ``to_dict`` of either framing (a run's meta)."""
+    return FollowFraming(**d["follow"]) if "follow" in d else Framing.from_dict(d)
 
 
 def whole_canvas(width: int, height: int, out_width: int, out_height: int) -> Framing:
@@ -114,6 +170,41 @@ def person_framing(seq: PoseSequence, out_width: int, out_height: int) -> Framin
     x0 = min(max(cx - w / 2, 0.0), max(seq.width - w, 0.0)) if w <= seq.width else cx - w / 2
     y0 = min(max(cy - h / 2, 0.0), max(seq.height - h, 0.0)) if h <= seq.height else cy - h / 2
     return Framing(int(np.floor(x0)), int(np.floor(y0)), int(np.ceil(w)), int(np.ceil(h)), out_width, out_height)
+
+
+def usable_frames(seq: PoseSequence) -> np.ndarray:
+    """``[T]`` bool: frames whose pose has a torso (neck and mid-hip present) of a plausible length
+    (:data:`TORSO_RANGE` of the median): the ones fit to learn from and to size a following box by."""
+    ok = (seq.confidence[:, NECK] >= MIN_CONFIDENCE) & (seq.confidence[:, ROOT] >= MIN_CONFIDENCE)
+    if not ok.any():
+        return ok
+    torso = np.linalg.norm(seq.xy[:, NECK] - seq.xy[:, ROOT], axis=-1) / body_scale(seq)
+    return ok & (torso >= TORSO_RANGE[0]) & (torso <= TORSO_RANGE[1])
+
+
+def follow_framing(seq: PoseSequence, out_width: int, out_height: int) -> FollowFraming:
+    """The smallest following box (model aspect) that holds the whole person around its centre in
+    :data:`FOLLOW_COVERAGE` % of the usable frames, with :data:`CROP_MARGIN` to spare."""
+    centres = FollowFraming(1, 1, out_width, out_height).centres(seq)
+    visible = seq.confidence >= MIN_CONFIDENCE
+    offsets = np.where(visible[..., None], np.abs(seq.xy - centres[:, None, :].astype(np.float32)), 0.0)
+    reach = offsets.max(axis=1)[usable_frames(seq)]  # [frames, 2]: the farthest joint from the centre per axis
+    if not len(reach):
+        return FollowFraming(seq.width, seq.height, out_width, out_height)
+    half_w, half_h = np.percentile(reach, FOLLOW_COVERAGE, axis=0)
+    margin = CROP_MARGIN * 2 * max(half_w, half_h, 1.0)
+    w, h = 2 * half_w + margin, 2 * half_h + margin
+    aspect = out_width / out_height
+    w, h = max(w, h * aspect), max(h, w / aspect)
+    return FollowFraming(int(np.ceil(w)), int(np.ceil(h)), out_width, out_height)
+
+
+def video_framing(seq: PoseSequence, out_width: int, out_height: int) -> VideoFraming:
+    """How to frame a target video whose poses are ``seq``: the fixed box of :func:`person_framing`, unless it
+    would be :data:`FOLLOW_GAIN` times taller than the box of :func:`follow_framing` (the person travels)."""
+    fixed = person_framing(seq, out_width, out_height)
+    follow = follow_framing(seq, out_width, out_height)
+    return follow if fixed.crop_height > FOLLOW_GAIN * follow.crop_height else fixed
 
 
 def label_map(keypoints: np.ndarray, framing: Framing) -> np.ndarray:

@@ -28,7 +28,7 @@ from dancesynth.core.media import VideoWriter
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import BODY25_LIMBS, PoseSequence
 from stage2_video.data import to_image, to_tensor
-from stage2_video.framing import Framing, label_map
+from stage2_video.framing import Framing, VideoFraming, framing_from_dict, label_map
 from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig
 from stage2_video.normalize import BodyStats, fit_normalization
 from stage2_video.train import KIND
@@ -125,7 +125,7 @@ class AppearanceModel:
 
     generator: Callable[[torch.Tensor], torch.Tensor]
     config: Pix2PixHDConfig
-    framing: Framing
+    framing: VideoFraming
     target_stats: BodyStats | None
     fps: float
     device: torch.device
@@ -155,7 +155,7 @@ def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", opti
         model = Pix2PixHD(config)
         model.load_state_dict(state_dict)
         stats = BodyStats.from_dict(meta["target_stats"]) if meta.get("target_stats") else None
-        framing, fps = Framing.from_dict(meta["framing"]), float(meta["fps"])
+        framing, fps = framing_from_dict(meta["framing"]), float(meta["fps"])
         if not 0 < fps < math.inf:
             raise ValueError(f"fps {fps} is not a positive frame rate")
         canvas_width, canvas_height = (int(v) for v in meta["canvas"])
@@ -184,12 +184,14 @@ def target_poses(model: AppearanceModel, poses: PoseSequence, normalize: bool = 
     return fit_normalization(poses, model.target_stats).apply(poses)
 
 
-def render_frames(model: AppearanceModel, poses: PoseSequence, normalize: bool = True) -> Iterator[np.ndarray]:
-    """Yield one ``[height, width, 3]`` uint8 RGB frame (model resolution) per pose, in order."""
+def render_frames(model: AppearanceModel, poses: PoseSequence, normalize: bool = True,
+                  framings: list[Framing] | None = None) -> Iterator[np.ndarray]:
+    """Yield one ``[height, width, 3]`` uint8 RGB frame (model resolution) per pose, in order; frame t is drawn
+    in ``framings[t]`` (default: the model's framing of the poses, ``model.framing.frames``)."""
     seq = target_poses(model, poses, normalize)
     previous = None
-    for keypoints in seq.keypoints:
-        previous = model.step(label_map(keypoints, model.framing), previous)
+    for keypoints, framing in zip(seq.keypoints, framings or model.framing.frames(seq)):
+        previous = model.step(label_map(keypoints, framing), previous)
         yield to_image(previous[0])
 
 

@@ -45,7 +45,7 @@ from stage2_video.data import (
     split_ranges,
     to_image,
 )
-from stage2_video.framing import Framing, person_framing
+from stage2_video.framing import framing_from_dict, video_framing
 from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig, feature_matching_loss, lsgan_loss, preset
 from stage2_video.normalize import body_stats
 from stage2_video.quality import psnr, ssim
@@ -86,6 +86,10 @@ class VideoTrainer:
         self.run_dir, self.rank, self.world = run.path, run.rank, run.world
         train_range, self.val_range = split_ranges(len(target.poses), config.val_fraction)
         self.train_set = FramePairs(target, train_range)
+        if not len(self.train_set):
+            raise DancesynthError("The person's body is found in too few consecutive frames of the target video to "
+                                  "learn from; use a video where one person stays fully visible.")
+        self.val_frames = [t for t in self.val_range if target.usable[t]]
         torch.manual_seed(options.seed)
         self.model = Pix2PixHD(config).to(device)
         d_params = list(self.model.discriminator.parameters())
@@ -224,7 +228,7 @@ class VideoTrainer:
     def validate(self) -> dict[str, float]:
         """Mean SSIM / PSNR over up to ``val_frames`` held-out frames, generated in sequence as at render time."""
         self.model.eval()
-        frames = list(self.val_range)[:self.options.val_frames]
+        frames = self.val_frames[:self.options.val_frames]
         scores_s, scores_p, previous = [], [], None
         val = FramePairs(self.target, self.val_range)
         for t in frames:
@@ -235,17 +239,19 @@ class VideoTrainer:
             scores_s.append(ssim(fake, real))
             scores_p.append(psnr(fake, real))
         self.model.train()
+        if not scores_s:
+            return {"ssim": math.nan, "psnr": math.nan}
         return {"ssim": float(np.mean(scores_s)), "psnr": float(np.mean(scores_p))}
 
     @torch.no_grad()
     def write_samples(self, count: int = 3) -> None:
         """PNG grid of held-out frames, one row each: real | skeleton | generated (two-frame warm-up)."""
-        if self.rank != 0:
+        val = FramePairs(self.target, self.val_range)
+        if self.rank != 0 or not len(val):
             return
         self.model.eval()
-        val = FramePairs(self.target, self.val_range)
         rows = []
-        for t in np.linspace(self.val_range.start + 1, self.val_range.stop - 1, count).astype(int):
+        for t in [val.starts[i] + 1 for i in np.linspace(0, len(val) - 1, count).astype(int)]:
             label_p, _ = val.item(t - 1)
             label, real = val.item(t)
             previous = self.model.generate(label_p[None].to(self.device))
@@ -321,7 +327,7 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
     if run.meta is not None:
         with run_file_contents(run.path / POINTER):
             config = config_from_dict(Pix2PixHDConfig, run.meta["config"])
-            framing = Framing.from_dict(run.meta["framing"])
+            framing = framing_from_dict(run.meta["framing"])
     else:
         config = preset(preset_name, **(overrides or {}))
         framing = None
@@ -329,8 +335,8 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
     if not run.writer:
         run.barrier()
     seq = check_poses_match(load_or_extract_poses(video, run_dir, Path(poses) if poses else None), video)
-    framing = framing or person_framing(seq, config.width, config.height)
-    frames = cache_frames(video, framing, run_dir, len(seq))
+    framing = framing or video_framing(seq, config.width, config.height)
+    frames = cache_frames(video, framing, run_dir, seq)
     if run.writer:
         cache_plate(video, seq, run_dir)
         run.barrier()

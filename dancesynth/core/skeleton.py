@@ -169,11 +169,13 @@ def to_dancing2music(seq: PoseSequence) -> np.ndarray:
     return seq.keypoints[:, list(D2M14_TO_BODY25), :2].copy()
 
 
-def interpolate_missing(seq: PoseSequence, min_confidence: float = 0.1) -> PoseSequence:
+def interpolate_missing(seq: PoseSequence, min_confidence: float = 0.1, max_gap: int | None = None) -> PoseSequence:
     """Fill absent joints (confidence < ``min_confidence``) linearly in time, per joint.
 
     Gaps at the start or end are filled by holding the nearest observed value. Filled joints get
-    confidence ``min_confidence``; observed joints keep theirs. A joint never observed stays absent.
+    confidence ``min_confidence``; observed joints keep theirs. A joint never observed stays absent, and so
+    does a joint over any gap longer than ``max_gap`` frames (confidence 0): a guess held that long would draw
+    a limb that is not there.
     """
     kp = seq.keypoints.copy()
     t = np.arange(len(seq))
@@ -184,6 +186,11 @@ def interpolate_missing(seq: PoseSequence, min_confidence: float = 0.1) -> PoseS
         for c in (0, 1):
             kp[~seen, j, c] = np.interp(t[~seen], t[seen], kp[seen, j, c])
         kp[~seen, j, 2] = min_confidence
+        if max_gap is not None:
+            edges = np.flatnonzero(np.diff(np.r_[0, (~seen).astype(np.int8), 0]))
+            for start, stop in zip(edges[::2], edges[1::2]):
+                if stop - start > max_gap:
+                    kp[start:stop, j, 2] = 0.0
     return seq.replace(kp)
 
 

@@ -55,6 +55,17 @@ def test_interpolate_missing():
     assert not out.confidence[:, 5].any()
 
 
+def test_a_joint_lost_for_longer_than_the_largest_gap_stays_absent():
+    kp = np.ones((12, NUM_JOINTS, 3), np.float32)
+    kp[2:4, 0, 2] = 0.0   # lost for 2 frames: filled
+    kp[6:, 1, 2] = 0.0    # lost from frame 6 to the end: not held for 6 frames
+    kp[:3, 2, 2] = 0.0    # lost for the first 3 frames: not held either
+    out = skeleton.interpolate_missing(PoseSequence(kp, 15, 100, 100), max_gap=2)
+    np.testing.assert_allclose(out.confidence[2:4, 0], 0.1)
+    assert not out.confidence[6:, 1].any() and not out.confidence[:3, 2].any()
+    assert (out.confidence[:6, 1] == 1).all() and (out.confidence[3:, 2] == 1).all()
+
+
 def test_resample_keeps_duration_and_linear_motion():
     t = np.arange(30) / 30.0
     kp = np.ones((30, NUM_JOINTS, 3), np.float32)

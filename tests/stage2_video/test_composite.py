@@ -41,7 +41,12 @@ def real() -> tuple[list[np.ndarray], PoseSequence, np.ndarray]:
 @pytest.fixture(scope="module")
 def compositor(real) -> Compositor:
     _, poses, plate = real
-    return Compositor(person_framing(poses, 128, 128), plate, (poses.width, poses.height), body_scale(poses))
+    return Compositor(plate, (poses.width, poses.height), body_scale(poses))
+
+
+@pytest.fixture(scope="module")
+def framing(real) -> Framing:
+    return person_framing(real[1], 128, 128)
 
 
 def body(poses: PoseSequence, t: int) -> np.ndarray:
@@ -67,11 +72,11 @@ def test_plate_needs_a_frame_for_every_pose(real):
         background_plate(iter(frames[:100]), poses)
 
 
-def test_composite_is_the_scene_with_the_generated_person(real, compositor):
+def test_composite_is_the_scene_with_the_generated_person(real, compositor, framing):
     frames, poses, plate = real
     t = 100
     # A perfect generator's output: the real frame as the model sees it.
-    out = compositor.frame(compositor.framing.image(frames[t]), poses.keypoints[t])
+    out = compositor.frame(framing.image(frames[t]), poses.keypoints[t], framing)
     assert out.shape == (poses.height, poses.width, 3) and out.dtype == np.uint8
     far = ~person_mask(poses.keypoints[t], poses.width, poses.height, body_scale(poses), margin=1.0)
     assert np.array_equal(out[far], plate[far])
@@ -80,9 +85,8 @@ def test_composite_is_the_scene_with_the_generated_person(real, compositor):
     assert error < 0.5 * np.abs(plate.astype(int) - frames[t])[region].mean()
 
 
-def test_no_edge_where_the_person_leaves_the_crop_box(real, compositor):
+def test_no_edge_where_the_person_leaves_the_crop_box(real, compositor, framing):
     _, poses, plate = real
-    framing = compositor.framing
     right = framing.x0 + framing.crop_width
     assert right < poses.width  # this box edge lies inside the canvas
     kp = poses.keypoints[100].copy()
@@ -91,34 +95,35 @@ def test_no_edge_where_the_person_leaves_the_crop_box(real, compositor):
     kp[JOINT_INDEX["RWrist"]] = (right - 5, y, 1.0)  # the hand reaches across the box's right edge
     magenta = np.zeros((framing.out_height, framing.out_width, 3), np.uint8)
     magenta[:] = (255, 0, 255)  # differs from the scene everywhere: any cut would show
-    out = compositor.frame(magenta, kp)
+    out = compositor.frame(magenta, kp, framing)
     change = np.abs(out.astype(int) - plate).max(axis=2)
     rows = slice(int(y) - 10, int(y) + 10)
     assert change[rows, right - 16].min() > 80 and change[:, right:].max() == 0
     assert change[rows, right - 1].max() <= 30
     # The generated frame's weight falls to 0 at the edge over about 12 pixels; a cut would drop it from 1 at once.
-    x0, y0 = compositor.region[:2]
-    alpha = compositor.alpha(kp)[rows.start - y0:rows.stop - y0, right - 16 - x0:right - x0]
+    x0, y0 = compositor.region(framing)[:2]
+    alpha = compositor.alpha(kp, framing)[rows.start - y0:rows.stop - y0, right - 16 - x0:right - x0]
     assert alpha[:, 0].min() > 0.9 and alpha[:, -1].max() < 0.1
     assert np.abs(np.diff(alpha, axis=1)).max() < 0.15
 
 
-def test_smaller_output_keeps_the_aspect_and_the_placement(real, compositor):
+def test_smaller_output_keeps_the_aspect_and_the_placement(real, compositor, framing):
     frames, poses, plate = real
     t = 100
     size = (round(poses.width * 180 / poses.height), 180)
-    small = Compositor(compositor.framing, plate, size, body_scale(poses))
-    generated = compositor.framing.image(frames[t])
-    out = small.frame(generated, poses.keypoints[t])
+    small = Compositor(plate, size, body_scale(poses))
+    generated = framing.image(frames[t])
+    out = small.frame(generated, poses.keypoints[t], framing)
     assert out.shape == (180, 320, 3)
-    reference = cv2.resize(compositor.frame(generated, poses.keypoints[t]), size, interpolation=cv2.INTER_AREA)
+    reference = cv2.resize(compositor.frame(generated, poses.keypoints[t], framing), size,
+                           interpolation=cv2.INTER_AREA)
     assert np.abs(out.astype(int) - reference).mean() < 3
     skeleton = small.skeleton(poses.keypoints[t])
     assert skeleton.shape == out.shape
     drawn = skeleton.any(axis=2)
-    x0, y0, x1, y1 = small.region
+    x0, y0, x1, y1 = small.region(framing)
     alpha = np.zeros(drawn.shape, np.float32)
-    alpha[y0:y1, x0:x1] = small.alpha(poses.keypoints[t])
+    alpha[y0:y1, x0:x1] = small.alpha(poses.keypoints[t], framing)
     assert drawn.sum() > 50 and (alpha[drawn] > 0.5).mean() > 0.95  # the skeleton lies on the person
 
 
@@ -139,7 +144,7 @@ def test_older_run_gets_its_plate_from_its_video(tiny_run, tmp_path):
     shutil.copytree(tiny_run, run)
     for name in (PLATE_FILE, PLATE_FILE + ".key"):
         (run / name).unlink()
-    compositor = scene_compositor(run, Framing(0, 0, 64, 64, 32, 32), (128, 128))
+    compositor = scene_compositor(run, (128, 128))
     assert compositor.plate.shape == (128, 128, 3) and (run / PLATE_FILE).is_file()
 
 

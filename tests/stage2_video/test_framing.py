@@ -1,7 +1,17 @@
 import numpy as np
 
 from dancesynth.core.skeleton import BODY25_COLORS, PoseSequence
-from stage2_video.framing import Framing, label_map, label_maps, person_framing, whole_canvas
+from stage2_video.framing import (
+    FollowFraming,
+    Framing,
+    follow_framing,
+    framing_from_dict,
+    label_map,
+    label_maps,
+    person_framing,
+    video_framing,
+    whole_canvas,
+)
 
 
 def _pose(cx: float, cy: float, s: float) -> np.ndarray:
@@ -59,3 +69,43 @@ def test_label_map_is_deterministic_openpose_coloured():
     absent = seq.keypoints[0].copy()
     absent[:, 2] = 0
     assert not label_map(absent, f).any()
+
+
+def _walk(frames: int = 90, width: int = 1920, height: int = 1080) -> PoseSequence:
+    """A 200-px-tall person walking from the left edge to the right edge of a wide canvas."""
+    xs = np.linspace(200, width - 200, frames)
+    return PoseSequence(np.stack([_pose(x, height / 2, 100) for x in xs]), 30, width, height)
+
+
+def test_a_person_crossing_the_scene_is_followed_and_fills_the_model_image():
+    seq = _walk()
+    f = video_framing(seq, 128, 128)
+    assert isinstance(f, FollowFraming)
+    assert f.crop_height < 2 * 200 * 1.5  # about the person's height, not the path's width
+    for t, box in enumerate(f.frames(seq)):
+        pts = box.points(seq.xy[t])
+        assert (pts >= 0).all() and (pts < 128).all()  # the whole person in the image
+        assert np.ptp(pts[:, 1]) > 0.5 * 128  # and large in it
+    assert framing_from_dict(f.to_dict()) == f
+    # The fixed box for the same walk would shrink the person to a fraction of that.
+    fixed = person_framing(seq, 128, 128)
+    assert fixed.crop_height > 3 * f.crop_height
+
+
+def test_frames_without_a_torso_keep_the_box_on_the_path():
+    seq = _walk(frames=60)
+    kp = seq.keypoints.copy()
+    kp[20:30, :, 2] = 0.0  # the person lost for a third of a second
+    lost = seq.replace(kp)
+    f = follow_framing(seq, 128, 128)
+    x0 = np.array([box.x0 for box in f.frames(lost)])
+    assert (np.diff(x0) >= 0).all()  # still moving steadily to the right
+    np.testing.assert_allclose(x0[20:30], [box.x0 for box in f.frames(seq)][20:30], atol=3)
+
+
+def test_a_person_dancing_on_the_spot_gets_one_fixed_box():
+    kp = np.stack([_pose(900 + 10 * np.sin(t), 400, 120) for t in range(60)])
+    seq = PoseSequence(kp, 15, 1280, 720)
+    f = video_framing(seq, 128, 128)
+    assert isinstance(f, Framing) and f.frames(seq) == [f] * 60
+    assert framing_from_dict(f.to_dict()) == f
