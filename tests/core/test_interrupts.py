@@ -21,6 +21,8 @@ def _first_asks_second_interrupts() -> None:
 
 
 def _disabled_leaves_signals_alone() -> None:
+    # Python's own Ctrl-C handler, which a shell's background job (SIGINT ignored) would not have installed.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         with deferred_interrupts(enabled=False):
             os.kill(os.getpid(), signal.SIGINT)
