@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 import openvino
 import torch
-from bench_render import dancing_poses, interleaved_fps, max_step_diff
+from bench_render import dancing_poses, interleaved_fps, max_step_diff, scene_plate
 from eval_video import held_out_quality
 
 from dancesynth.core.device import cpu_has_bf16, precision_name, resolve_device, resolve_precision
@@ -40,7 +40,7 @@ from dancesynth.core.skeleton import PoseSequence, resample
 from stage1_pose.data.styles import STYLES
 from stage1_pose.data.synth_dance import synthesize_dance
 from stage2_video.framing import whole_canvas
-from stage2_video.models.pix2pixhd import Pix2PixHD, preset
+from stage2_video.models.pix2pixhd import Pix2PixHD, generator_channels, preset
 from stage2_video.render import AppearanceModel, OpenVINOGenerator
 from stage2_video.synthetic_person import appearance_preset, write_person_video
 from stage2_video.train import TrainOptions, train_video
@@ -95,10 +95,13 @@ def render_rows(size: int, frames: int, rounds: int) -> list[tuple[float, int]]:
     poses = dancing_poses(frames, size)
 
     def wrap(network: Callable[[torch.Tensor], torch.Tensor]) -> AppearanceModel:
-        return AppearanceModel(network, config, framing, None, 15.0, device, (size, size))
+        return AppearanceModel(network, config, framing, None, 15.0, device, (size, size),
+                               plate=scene_plate(config, size))
 
     plain = wrap(generator)
-    models = [wrap(OpenVINOGenerator(generator, 6, size, size, dtype, winograd)) for _, dtype, winograd in RENDER_PATHS]
+    channels = generator_channels(config)
+    models = [wrap(OpenVINOGenerator(generator, channels, size, size, dtype, winograd))
+              for _, dtype, winograd in RENDER_PATHS]
     runs = interleaved_fps(models, poses, rounds)
     return [(float(np.median(fps)), max_step_diff(plain, fast, poses)) for fps, fast in zip(runs, models)]
 

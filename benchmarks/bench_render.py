@@ -25,8 +25,8 @@ import torch
 
 from dancesynth.core.skeleton import PoseSequence
 from stage2_video.data import to_image
-from stage2_video.framing import label_maps, whole_canvas
-from stage2_video.models.pix2pixhd import Pix2PixHD, preset
+from stage2_video.framing import condition, whole_canvas
+from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig, generator_channels, preset
 from stage2_video.render import AppearanceModel, optimize_generator, render_frames
 
 
@@ -61,10 +61,16 @@ def interleaved_fps(models: list[AppearanceModel], poses: PoseSequence, rounds: 
     return fps
 
 
+def scene_plate(config: Pix2PixHDConfig, size: int) -> np.ndarray | None:
+    """A grey ``size`` px background plate for networks conditioned on one (None otherwise)."""
+    return np.full((size, size, 3), 90, np.uint8) if config.background else None
+
+
 def max_step_diff(plain: AppearanceModel, fast: AppearanceModel, poses: PoseSequence) -> int:
     """Largest 0-255 difference between the two models' frames, both conditioned on plain's previous frame."""
     worst, previous = 0, None
-    for label in label_maps(poses, plain.framing):
+    for keypoints in poses.keypoints:
+        label = condition(keypoints, plain.framing, plain.plate)
         with torch.no_grad():
             ref = plain.step(label, previous)
         out = fast.step(label, previous)
@@ -96,9 +102,10 @@ def main() -> None:
             frames = max(4, args.frames // 4) if name == "paper" else args.frames
             poses = dancing_poses(frames, size)
             framing = whole_canvas(size, size, size, size)
-            plain = AppearanceModel(generator, config, framing, None, 15.0, device, (size, size))
-            fast = AppearanceModel(optimize_generator(generator, 6, size, size, device), config, framing, None,
-                                   15.0, device, (size, size))
+            plate = scene_plate(config, size)
+            plain = AppearanceModel(generator, config, framing, None, 15.0, device, (size, size), plate=plate)
+            fast = AppearanceModel(optimize_generator(generator, generator_channels(config), size, size, device),
+                                   config, framing, None, 15.0, device, (size, size), plate=plate)
             plain_runs, fast_runs = interleaved_fps([plain, fast], poses, args.rounds)
             plain_fps, fast_fps = float(np.median(plain_runs)), float(np.median(fast_runs))
             diff = max_step_diff(plain, fast, poses)

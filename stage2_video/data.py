@@ -30,7 +30,7 @@ from dancesynth.core.fileio import atomic_path
 from dancesynth.core.media import probe_video, read_frames
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence
-from stage2_video.framing import Framing, VideoFraming, label_map, usable_frames
+from stage2_video.framing import Framing, VideoFraming, condition, usable_frames
 
 POSES_FILE = "poses.npz"
 # A target video's person must score this many times any other person's prominence when first found.
@@ -43,7 +43,7 @@ def frames_file(framing: VideoFraming) -> str:
 
 
 def to_tensor(image: np.ndarray) -> torch.Tensor:
-    """``[H, W, 3]`` uint8 -> ``[3, H, W]`` float32 in [-1, 1]."""
+    """``[H, W, C]`` uint8 -> ``[C, H, W]`` float32 in [-1, 1]."""
     return torch.from_numpy(np.array(image, np.uint8)).permute(2, 0, 1).float().div(127.5).sub(1.0)
 
 
@@ -172,11 +172,13 @@ def split_ranges(num_frames: int, val_fraction: float) -> tuple[range, range]:
 @dataclass
 class TargetVideo:
     """Framed frames and poses of the target video; ``framings[t]`` framed frame t, ``usable[t]`` says whether
-    frame t is fit to learn from (:func:`usable_frames`)."""
+    frame t is fit to learn from (:func:`usable_frames`); ``plate`` is the scene's background (canvas size) for
+    models conditioned on it, else None."""
 
     frames: np.ndarray
     poses: PoseSequence
     framing: VideoFraming
+    plate: np.ndarray | None = None
     framings: list[Framing] = field(init=False)
     usable: np.ndarray = field(init=False)
 
@@ -188,7 +190,8 @@ class TargetVideo:
 class FramePairs(Dataset):
     """Consecutive (previous, current) training pairs inside one frame range, both frames usable.
 
-    Item: ``(label_prev, frame_prev, label_cur, frame_cur)``, each ``[3, H, W]`` float32 in [-1, 1].
+    Item: ``(cond_prev, frame_prev, cond_cur, frame_cur)``, float32 in [-1, 1]: frames ``[3, H, W]``, conditions
+    ``[C, H, W]`` (the label map, + the background crop; :func:`stage2_video.framing.condition`).
     """
 
     def __init__(self, target: TargetVideo, frames: range) -> None:
@@ -199,8 +202,8 @@ class FramePairs(Dataset):
         return len(self.starts)
 
     def item(self, t: int) -> tuple[torch.Tensor, torch.Tensor]:
-        """Label map and frame of frame ``t``."""
-        label = label_map(self.target.poses.keypoints[t], self.target.framings[t])
+        """Condition and frame of frame ``t``."""
+        label = condition(self.target.poses.keypoints[t], self.target.framings[t], self.target.plate)
         return to_tensor(label), to_tensor(self.target.frames[t])
 
     def __getitem__(self, i: int) -> tuple[torch.Tensor, ...]:

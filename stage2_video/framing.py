@@ -220,3 +220,11 @@ def label_maps(seq: PoseSequence, framing: Framing) -> Iterator[np.ndarray]:
     """Stream :func:`label_map` over every frame of ``seq``."""
     for keypoints in seq.keypoints:
         yield label_map(keypoints, framing)
+
+
+def condition(keypoints: np.ndarray, framing: Framing, plate: np.ndarray | None = None) -> np.ndarray:
+    """What the model draws one frame from: ``[out_height, out_width, 3]`` uint8 label map of the ``[25, 3]``
+    pose, followed (``[..., 6]``) by the same framing's crop of the ``[H, W, 3]`` background ``plate`` when
+    given."""
+    label = label_map(keypoints, framing)
+    return label if plate is None else np.concatenate([label, framing.image(plate)], axis=2)

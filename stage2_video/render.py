@@ -27,9 +27,10 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import VideoWriter
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import BODY25_LIMBS, PoseSequence
+from stage2_video.composite import load_plate
 from stage2_video.data import to_image, to_tensor
-from stage2_video.framing import Framing, VideoFraming, framing_from_dict, label_map
-from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig
+from stage2_video.framing import Framing, VideoFraming, condition, framing_from_dict
+from stage2_video.models.pix2pixhd import IMAGE_CHANNELS, Pix2PixHD, Pix2PixHDConfig, generator_channels
 from stage2_video.normalize import BodyStats, fit_normalization
 from stage2_video.train import KIND
 from stage2_video.winograd import winograd_generator
@@ -132,13 +133,16 @@ class AppearanceModel:
     canvas: tuple[int, int]  # (width, height) in pixels of the target video, upright: what the scene output has
     # [B] the target's median bone lengths (pixels of its canvas) for retargeting; None for runs saved before them
     bone_lengths: np.ndarray | None = None
+    # [H, W, 3] uint8 background plate at the canvas size, for models conditioned on it (config.background)
+    plate: np.ndarray | None = None
 
     @torch.inference_mode()
-    def step(self, label: np.ndarray, previous: torch.Tensor | None) -> torch.Tensor:
-        """``[H, W, 3]`` uint8 label map (+ previous output) -> ``[1, 3, H, W]`` frame in [-1, 1]."""
-        x = to_tensor(label)[None].to(self.device)
+    def step(self, cond: np.ndarray, previous: torch.Tensor | None) -> torch.Tensor:
+        """``[H, W, C]`` uint8 condition (:func:`stage2_video.framing.condition`) + previous output ->
+        ``[1, 3, H, W]`` frame in [-1, 1]."""
+        x = to_tensor(cond)[None].to(self.device)
         if self.config.temporal:
-            x = torch.cat([x, torch.zeros_like(x) if previous is None else previous], dim=1)
+            x = torch.cat([x, x.new_zeros(1, IMAGE_CHANNELS, *x.shape[2:]) if previous is None else previous], dim=1)
         return self.generator(x)
 
 
@@ -166,12 +170,12 @@ def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", opti
             raise ValueError(f"bone_lengths has shape {lengths.shape}, not [{len(BODY25_LIMBS)}]")
     generator = model.generator.eval().to(dev)
     if optimize:
-        in_channels = 6 if config.temporal else 3
-        generator = optimize_generator(generator, in_channels, config.width, config.height, dev, dtype)
+        generator = optimize_generator(generator, generator_channels(config), config.width, config.height, dev, dtype)
     elif dtype != torch.float32:
         generator = _Autocast(generator, dtype)
+    plate = load_plate(run_dir) if config.background else None
     return AppearanceModel(generator, config, framing, stats, fps, dev, (canvas_width, canvas_height),
-                           bone_lengths=lengths)
+                           bone_lengths=lengths, plate=plate)
 
 
 def target_poses(model: AppearanceModel, poses: PoseSequence, normalize: bool = True) -> PoseSequence:
@@ -191,7 +195,7 @@ def render_frames(model: AppearanceModel, poses: PoseSequence, normalize: bool =
     seq = target_poses(model, poses, normalize)
     previous = None
     for keypoints, framing in zip(seq.keypoints, framings or model.framing.frames(seq)):
-        previous = model.step(label_map(keypoints, framing), previous)
+        previous = model.step(condition(keypoints, framing, model.plate), previous)
         yield to_image(previous[0])
 
 

@@ -46,7 +46,14 @@ from stage2_video.data import (
     to_image,
 )
 from stage2_video.framing import framing_from_dict, video_framing
-from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig, feature_matching_loss, lsgan_loss, preset
+from stage2_video.models.pix2pixhd import (
+    LABEL_CHANNELS,
+    Pix2PixHD,
+    Pix2PixHDConfig,
+    feature_matching_loss,
+    lsgan_loss,
+    preset,
+)
 from stage2_video.normalize import body_stats
 from stage2_video.quality import psnr, ssim
 from stage2_video.retarget import target_bone_lengths
@@ -256,7 +263,7 @@ class VideoTrainer:
             label, real = val.item(t)
             previous = self.model.generate(label_p[None].to(self.device))
             fake = self.model.generate(label[None].to(self.device), previous)
-            rows.append(np.concatenate([to_image(real), to_image(label), to_image(fake[0])], axis=1))
+            rows.append(np.concatenate([to_image(real), to_image(label[:LABEL_CHANNELS]), to_image(fake[0])], axis=1))
         self.model.train()
         folder = self.run_dir / "samples"
         folder.mkdir(exist_ok=True)
@@ -337,10 +344,11 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
     seq = check_poses_match(load_or_extract_poses(video, run_dir, Path(poses) if poses else None), video)
     framing = framing or video_framing(seq, config.width, config.height)
     frames = cache_frames(video, framing, run_dir, seq)
+    plate = cache_plate(video, seq, run_dir)  # made by rank 0; the other ranks read it after the barrier
     if run.writer:
-        cache_plate(video, seq, run_dir)
         run.barrier()
-    trainer = VideoTrainer(config, TargetVideo(frames, seq, framing), run, dev, build_vgg_loss(vgg_weights),
+    target = TargetVideo(frames, seq, framing, plate if config.background else None)
+    trainer = VideoTrainer(config, target, run, dev, build_vgg_loss(vgg_weights),
                       options, str(video), dtype)
     if resume:
         trainer.restore()

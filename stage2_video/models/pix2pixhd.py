@@ -35,6 +35,9 @@ class Pix2PixHDConfig:
         n_blocks_local: residual blocks in the local enhancer.
         ndf, n_layers_d, num_d: PatchGAN filters, strided layers and number of scales.
         temporal: Everybody Dance Now smoothing (previous frame as input, temporal discriminator).
+        background: the generator and discriminators also see the crop of the scene's background plate, so the
+            model paints the person over a given scene instead of learning the scene (which moves when the crop
+            follows the person).
         lambda_feat, lambda_vgg: weights of discriminator feature matching and the VGG19 perceptual loss.
         lambda_l1: pixel L1 weight; 0 in the paper. The CPU preset uses it because the VGG loss, which
             supplies pix2pixHD's reconstruction signal, needs ImageNet weights that cannot be downloaded here.
@@ -55,6 +58,7 @@ class Pix2PixHDConfig:
     n_layers_d: int = 3
     num_d: int = 2
     temporal: bool = True
+    background: bool = False
     lambda_feat: float = 10.0
     lambda_vgg: float = 10.0
     lambda_l1: float = 10.0
@@ -75,9 +79,9 @@ class Pix2PixHDConfig:
 
 PRESETS: dict[str, Pix2PixHDConfig] = {
     # CPU: global generator only, trains in minutes on a short video.
-    "small": Pix2PixHDConfig(),
+    "small": Pix2PixHDConfig(background=True),
     # The small network at 256 px: 4x the pixels per step, affordable with bf16 CPUs or a GPU.
-    "medium": Pix2PixHDConfig(width=256, height=256),
+    "medium": Pix2PixHDConfig(width=256, height=256, background=True),
     # Published pix2pixHD 1024p / Everybody Dance Now settings (GPU); the enhancer's global generator gets 2 * ngf.
     "paper": Pix2PixHDConfig(width=1024, height=512, ngf=32, n_downsample=4, n_blocks=9, local_enhancer=True,
                              ndf=64, lambda_l1=0.0, batch_size=1),
@@ -211,9 +215,19 @@ class MultiscaleDiscriminator(nn.Module):
         return outs
 
 
+def condition_channels(config: Pix2PixHDConfig) -> int:
+    """Channels of what a frame is conditioned on: the label map (+ the background crop)."""
+    return LABEL_CHANNELS + (IMAGE_CHANNELS if config.background else 0)
+
+
+def generator_channels(config: Pix2PixHDConfig) -> int:
+    """The generator's input channels: the condition (+ the previous frame when temporal)."""
+    return condition_channels(config) + (IMAGE_CHANNELS if config.temporal else 0)
+
+
 def build_generator(config: Pix2PixHDConfig) -> nn.Module:
-    """The generator the config describes; input channels = label (+ previous frame when temporal)."""
-    cin = LABEL_CHANNELS + (IMAGE_CHANNELS if config.temporal else 0)
+    """The generator the config describes (input: :func:`generator_channels`)."""
+    cin = generator_channels(config)
     if config.local_enhancer:
         return LocalEnhancer(cin, config.ngf, config.n_downsample, config.n_blocks, config.n_blocks_local)
     return GlobalGenerator(cin, config.ngf, config.n_downsample, config.n_blocks)
@@ -230,16 +244,17 @@ class Pix2PixHD(nn.Module):
         super().__init__()
         self.config = config
         self.generator = build_generator(config)
-        pair = LABEL_CHANNELS + IMAGE_CHANNELS
+        pair = condition_channels(config) + IMAGE_CHANNELS
         self.discriminator = MultiscaleDiscriminator(pair, config.ndf, config.n_layers_d, config.num_d)
         self.temporal_discriminator = (
             MultiscaleDiscriminator(2 * pair, config.ndf, config.n_layers_d, config.num_d) if config.temporal else None)
 
     def generate(self, label: torch.Tensor, previous: torch.Tensor | None = None) -> torch.Tensor:
-        """``[B, 3, H, W]`` label map (+ previous frame, zeros when None) -> ``[B, 3, H, W]`` frame in [-1, 1]."""
+        """``[B, C, H, W]`` condition (label map, + background crop; :func:`condition_channels`) and previous
+        frame (zeros when None) -> ``[B, 3, H, W]`` frame in [-1, 1]."""
         if self.config.temporal:
             if previous is None:
-                previous = torch.zeros_like(label)
+                previous = label.new_zeros(label.shape[0], IMAGE_CHANNELS, *label.shape[2:])
             label = torch.cat([label, previous], dim=1)
         return self.generator(label)
 

@@ -4,6 +4,7 @@ from dancesynth.core.skeleton import BODY25_COLORS, PoseSequence
 from stage2_video.framing import (
     FollowFraming,
     Framing,
+    condition,
     follow_framing,
     framing_from_dict,
     label_map,
@@ -109,3 +110,14 @@ def test_a_person_dancing_on_the_spot_gets_one_fixed_box():
     f = video_framing(seq, 128, 128)
     assert isinstance(f, Framing) and f.frames(seq) == [f] * 60
     assert framing_from_dict(f.to_dict()) == f
+
+
+def test_the_condition_is_the_label_map_then_the_same_crop_of_the_background():
+    seq = PoseSequence(np.stack([_pose(300, 200, 60)]), 15, 640, 360)
+    f = person_framing(seq, 64, 64)
+    plate = np.random.default_rng(0).integers(0, 255, (360, 640, 3), np.uint8)
+    cond = condition(seq.keypoints[0], f, plate)
+    assert cond.shape == (64, 64, 6)
+    np.testing.assert_array_equal(cond[..., :3], label_map(seq.keypoints[0], f))
+    np.testing.assert_array_equal(cond[..., 3:], f.image(plate))
+    assert condition(seq.keypoints[0], f).shape == (64, 64, 3)  # no plate: the label map alone

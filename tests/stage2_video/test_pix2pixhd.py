@@ -2,7 +2,14 @@ import pytest
 import torch
 
 from dancesynth.core.errors import DancesynthError
-from stage2_video.models.pix2pixhd import LocalEnhancer, Pix2PixHD, feature_matching_loss, lsgan_loss, preset
+from stage2_video.models.pix2pixhd import (
+    LocalEnhancer,
+    Pix2PixHD,
+    condition_channels,
+    feature_matching_loss,
+    lsgan_loss,
+    preset,
+)
 from stage2_video.vgg import NOTICE, VGGLoss, build_vgg_loss
 
 
@@ -11,11 +18,14 @@ def _tiny(**kw):
 
 
 @pytest.mark.parametrize("local", [False, True])
-def test_generator_and_discriminator_shapes(local):
-    cfg = _tiny(local_enhancer=local)
+@pytest.mark.parametrize("background", [False, True])
+def test_generator_and_discriminator_shapes(local, background):
+    cfg = _tiny(local_enhancer=local, background=background)
     model = Pix2PixHD(cfg)
     assert isinstance(model.generator, LocalEnhancer) == local
-    label = torch.rand(2, 3, 32, 32) * 2 - 1
+    # The condition: a label map, + the background's crop.
+    label = torch.rand(2, condition_channels(cfg), 32, 32) * 2 - 1
+    assert label.shape[1] == (6 if background else 3)
     frame = model.generate(label)
     assert frame.shape == (2, 3, 32, 32) and frame.abs().max() <= 1
     assert model.generate(label, frame).shape == frame.shape

@@ -9,7 +9,7 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import probe_video
 from dancesynth.core.skeleton import PoseSequence
 from stage2_video.data import to_image
-from stage2_video.framing import label_maps
+from stage2_video.framing import condition
 from stage2_video.render import OpenVINOGenerator, load_appearance_model, render_frames, render_video
 
 
@@ -45,7 +45,8 @@ def test_bf16_rendering_stays_close_to_fp32(tiny_run, monkeypatch, optimize):
     previous = None
     # Both conditioned on the fp32 previous frame: the barely trained network amplifies differences through its
     # recursion, which a trained one does not.
-    for label in label_maps(poses, exact.framing):
+    for keypoints in poses.keypoints:
+        label = condition(keypoints, exact.framing, exact.plate)
         reference = exact.step(label, previous)
         a, b = to_image(fast.step(label, previous)[0]), to_image(reference[0])
         diff = np.abs(a.astype(int) - b.astype(int))

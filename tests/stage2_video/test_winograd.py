@@ -2,7 +2,7 @@ import pytest
 import torch
 from torch import nn
 
-from stage2_video.models.pix2pixhd import Pix2PixHD, ResnetBlock, preset
+from stage2_video.models.pix2pixhd import Pix2PixHD, ResnetBlock, generator_channels, preset
 from stage2_video.render import OpenVINOGenerator
 from stage2_video.winograd import WinogradConv3x3, WinogradResnetStack, winograd_generator
 
@@ -36,34 +36,35 @@ def test_winograd_stack_computes_the_same_residual_blocks():
 def test_generator_rewrite_keeps_the_output(size, rewritten):
     config = preset("small", width=size, height=size, ngf=4, n_downsample=2, n_blocks=2)
     generator = _randomise(Pix2PixHD(config).generator)
-    fast = winograd_generator(generator, 6, size, size, min_channels=1)
+    fast = winograd_generator(generator, generator_channels(config), size, size, min_channels=1)
     # 64 px -> 16 px blocks (tiles of 4 fit); 40 px -> 10 px blocks stay direct.
     assert any(isinstance(m, WinogradResnetStack) for m in fast.modules()) == rewritten
     assert any(isinstance(m, ResnetBlock) for m in fast.modules()) != rewritten
-    x = torch.rand(1, 6, size, size) * 2 - 1
+    x = torch.rand(1, generator_channels(config), size, size) * 2 - 1
     with torch.no_grad():
         assert torch.allclose(fast(x), generator(x), atol=1e-4)
 
 
 def test_narrow_blocks_stay_direct_by_default():
     config = preset("small", width=32, height=32, ngf=4, n_downsample=1, n_blocks=1)
-    fast = winograd_generator(Pix2PixHD(config).generator, 6, 32, 32)
+    fast = winograd_generator(Pix2PixHD(config).generator, generator_channels(config), 32, 32)
     assert not any(isinstance(m, WinogradResnetStack) for m in fast.modules())
 
 
 def test_openvino_renderer_with_winograd_blocks_matches_plain_forward():
     config = preset("small", width=32, height=32, ngf=16, n_downsample=3, n_blocks=2)
     generator = _randomise(Pix2PixHD(config).generator)
-    assert any(isinstance(m, WinogradResnetStack) for m in winograd_generator(generator, 6, 32, 32).modules())
-    x = torch.rand(1, 6, 32, 32) * 2 - 1
+    channels = generator_channels(config)
+    assert any(isinstance(m, WinogradResnetStack) for m in winograd_generator(generator, channels, 32, 32).modules())
+    x = torch.rand(1, channels, 32, 32) * 2 - 1
     with torch.no_grad():
-        assert torch.allclose(OpenVINOGenerator(generator, 6, 32, 32)(x), generator(x), atol=1e-4)
+        assert torch.allclose(OpenVINOGenerator(generator, channels, 32, 32)(x), generator(x), atol=1e-4)
 
 
 def test_blocks_over_the_weight_budget_stay_direct():
     config = preset("small", width=32, height=32, ngf=4, n_downsample=1, n_blocks=1)
     generator = Pix2PixHD(config).generator.eval()
-    fast = winograd_generator(generator, 6, 32, 32, max_weight_bytes=0, min_channels=1)
+    fast = winograd_generator(generator, generator_channels(config), 32, 32, max_weight_bytes=0, min_channels=1)
     assert not any(isinstance(m, WinogradResnetStack) for m in fast.modules())
 
 
