@@ -15,6 +15,7 @@ WORLD_SIZE > 1 each rank takes its DistributedSampler share, gradients are avera
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import time
@@ -45,7 +46,7 @@ from stage2_video.data import (
     split_ranges,
     to_image,
 )
-from stage2_video.framing import framing_from_dict, video_framing
+from stage2_video.framing import FollowFraming, framing_from_dict, video_framing
 from stage2_video.models.pix2pixhd import (
     LABEL_CHANNELS,
     Pix2PixHD,
@@ -342,7 +343,11 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
     if not run.writer:
         run.barrier()
     seq = check_poses_match(load_or_extract_poses(video, run_dir, Path(poses) if poses else None), video)
-    framing = framing or video_framing(seq, config.width, config.height)
+    if framing is None:
+        framing = video_framing(seq, config.width, config.height)
+        # The plate's crop helped where the scene moves through a following crop and cost a fixed one (docs/methods).
+        if isinstance(framing, FollowFraming) and "background" not in (overrides or {}):
+            config = dataclasses.replace(config, background=True)
     frames = cache_frames(video, framing, run_dir, seq)
     plate = cache_plate(video, seq, run_dir)  # made by rank 0; the other ranks read it after the barrier
     if run.writer:

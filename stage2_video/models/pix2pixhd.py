@@ -36,8 +36,8 @@ class Pix2PixHDConfig:
         ndf, n_layers_d, num_d: PatchGAN filters, strided layers and number of scales.
         temporal: Everybody Dance Now smoothing (previous frame as input, temporal discriminator).
         background: the generator and discriminators also see the crop of the scene's background plate, so the
-            model paints the person over a given scene instead of learning the scene (which moves when the crop
-            follows the person).
+            model paints the person over a given scene instead of learning the scene; training turns it on when
+            the crop follows the person (the scene then moves through it).
         lambda_feat, lambda_vgg: weights of discriminator feature matching and the VGG19 perceptual loss.
         lambda_l1: pixel L1 weight; 0 in the paper. The CPU preset uses it because the VGG loss, which
             supplies pix2pixHD's reconstruction signal, needs ImageNet weights that cannot be downloaded here.
@@ -79,9 +79,9 @@ class Pix2PixHDConfig:
 
 PRESETS: dict[str, Pix2PixHDConfig] = {
     # CPU: global generator only, trains in minutes on a short video.
-    "small": Pix2PixHDConfig(background=True),
+    "small": Pix2PixHDConfig(),
     # The small network at 256 px: 4x the pixels per step, affordable with bf16 CPUs or a GPU.
-    "medium": Pix2PixHDConfig(width=256, height=256, background=True),
+    "medium": Pix2PixHDConfig(width=256, height=256),
     # Published pix2pixHD 1024p / Everybody Dance Now settings (GPU); the enhancer's global generator gets 2 * ngf.
     "paper": Pix2PixHDConfig(width=1024, height=512, ngf=32, n_downsample=4, n_blocks=9, local_enhancer=True,
                              ndf=64, lambda_l1=0.0, batch_size=1),

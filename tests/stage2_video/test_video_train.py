@@ -9,7 +9,10 @@ import torch
 
 from dancesynth.core import device as device_module
 from dancesynth.core.checkpoint import load_checkpoint
+from dancesynth.core.draw import draw_pose
 from dancesynth.core.errors import DancesynthError
+from dancesynth.core.media import write_video
+from dancesynth.core.skeleton import PoseSequence
 from stage2_video.train import TrainOptions, VideoTrainer, train_video
 
 
@@ -106,3 +109,22 @@ def test_bad_inputs_are_user_errors(tiny_target, tmp_path):
         train_video(video, tmp_path / "r", options=TrainOptions())
     with pytest.raises(DancesynthError):
         train_video(video, tmp_path / "r2", options=TrainOptions(epochs=1), resume=True)
+
+
+def test_a_person_crossing_the_scene_gets_a_following_crop_and_the_background_condition(tmp_path, make_poses,
+                                                                                           tiny_config):
+    sway = make_poses(frames=24)
+    kp = sway.keypoints.copy()
+    kp[..., 0] += np.linspace(0, 200, 24)[:, None]  # walks 200 px across a 320-px scene
+    seq = PoseSequence(kp, sway.fps, 320, 64)
+    frames = [draw_pose(np.full((64, 320, 3), 90, np.uint8), k, thickness=3) for k in seq.keypoints]
+    write_video(tmp_path / "walk.mp4", frames, seq.fps)
+    seq.save(tmp_path / "walk.npz")
+    meta = train_video(tmp_path / "walk.mp4", tmp_path / "run", "small", TrainOptions(epochs=1, max_steps=1,
+                       val_frames=2), poses=tmp_path / "walk.npz", device="cpu", overrides=tiny_config)
+    assert "follow" in meta["framing"] and meta["config"]["background"]
+
+
+def test_a_person_dancing_on_the_spot_keeps_the_fixed_crop_without_the_background(tiny_run):
+    meta = load_checkpoint(tiny_run, "stage2")[1]
+    assert "follow" not in meta["framing"] and not meta["config"]["background"]
