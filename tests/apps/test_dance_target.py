@@ -55,9 +55,10 @@ def test_target_trains_once_then_reuses_then_continues(setup, capsys):
     assert time.monotonic() - start < 30, "a cached model starts rendering at once"
     assert _meta(entry)["save_id"] == first["save_id"], "the cached model was used as it was"
 
-    assert _dance(song, clip, cache, root / "c.mp4", "0.1") == 0
+    # Twice the first budget would be reached already when the first call's last step overran it on a busy CPU.
+    assert _dance(song, clip, cache, root / "c.mp4", "0.2") == 0
     more = _meta(entry)
-    assert more["step"] > first["step"] and more["trained_seconds"] >= 6 - 1, (first["step"], more["step"])
+    assert more["step"] > first["step"] and more["trained_seconds"] >= 12 - 1, (first, more["step"])
 
 
 def test_bad_targets_are_one_sentence_errors(setup, tmp_path, capsys):
