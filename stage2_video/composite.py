@@ -27,7 +27,7 @@ from dancesynth.core.draw import draw_pose
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import read_frames
 from dancesynth.core.progress import track
-from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX, NECK, ROOT, PoseSequence, body_scale
+from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX, NECK, ROOT, PoseSequence, body_scale, true_runs
 from stage2_video.data import POSES_FILE, cache_file
 from stage2_video.framing import MIN_CONFIDENCE, Framing
 
@@ -140,8 +140,7 @@ def trusted_joints(poses: PoseSequence) -> np.ndarray:
     longest = max(1, round(MAX_GUESS_SECONDS * poses.fps))
     trusted = present.copy()
     for j in range(filled.shape[1]):
-        edges = np.flatnonzero(np.diff(np.r_[0, filled[:, j].astype(np.int8), 0]))
-        for start, stop in zip(edges[::2], edges[1::2]):
+        for start, stop in true_runs(filled[:, j]):
             if stop - start > longest:
                 trusted[start:stop, j] = False
     return trusted

@@ -148,6 +148,12 @@ def whole_canvas(width: int, height: int, out_width: int, out_height: int) -> Fr
     return Framing(0, 0, int(width), int(height), int(out_width), int(out_height))
 
 
+def _to_aspect(w: float, h: float, out_width: int, out_height: int) -> tuple[float, float]:
+    """A ``w x h`` box grown along one side to the model image's aspect ratio."""
+    aspect = out_width / out_height
+    return max(w, h * aspect), max(h, w / aspect)
+
+
 def person_framing(seq: PoseSequence, out_width: int, out_height: int) -> Framing:
     """The crop around where the person moves in ``seq`` (all frames), grown to the model's aspect ratio.
 
@@ -160,9 +166,7 @@ def person_framing(seq: PoseSequence, out_width: int, out_height: int) -> Framin
     (x_lo, y_lo), (x_hi, y_hi) = np.percentile(pts, CROP_PERCENTILES, axis=0)
     margin = CROP_MARGIN * max(y_hi - y_lo, x_hi - x_lo, 1.0)
     x_lo, x_hi, y_lo, y_hi = x_lo - margin, x_hi + margin, y_lo - margin, y_hi + margin
-    aspect = out_width / out_height
-    w, h = x_hi - x_lo, y_hi - y_lo
-    w, h = max(w, h * aspect), max(h, w / aspect)
+    w, h = _to_aspect(x_hi - x_lo, y_hi - y_lo, out_width, out_height)
     if w >= seq.width and h >= seq.height:
         return whole_canvas(seq.width, seq.height, out_width, out_height)
     cx, cy = (x_lo + x_hi) / 2, (y_lo + y_hi) / 2
@@ -193,9 +197,7 @@ def follow_framing(seq: PoseSequence, out_width: int, out_height: int) -> Follow
         return FollowFraming(seq.width, seq.height, out_width, out_height)
     half_w, half_h = np.percentile(reach, FOLLOW_COVERAGE, axis=0)
     margin = CROP_MARGIN * 2 * max(half_w, half_h, 1.0)
-    w, h = 2 * half_w + margin, 2 * half_h + margin
-    aspect = out_width / out_height
-    w, h = max(w, h * aspect), max(h, w / aspect)
+    w, h = _to_aspect(2 * half_w + margin, 2 * half_h + margin, out_width, out_height)
     return FollowFraming(int(np.ceil(w)), int(np.ceil(h)), out_width, out_height)
 
 

@@ -12,7 +12,7 @@ import numpy as np
 from scipy.signal import savgol_filter
 
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.skeleton import PoseSequence
+from dancesynth.core.skeleton import PoseSequence, true_runs
 
 METHODS = ("savgol", "one-euro", "none")
 
@@ -51,17 +51,11 @@ def smooth(seq: PoseSequence, config: SmoothingConfig) -> PoseSequence:
     return _one_euro(seq, config)
 
 
-def _runs(present: np.ndarray) -> list[tuple[int, int]]:
-    """``(start, stop)`` frame ranges where ``present`` ([T] bool) is True."""
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], present.astype(np.int8), [0]])))
-    return list(zip(edges[::2], edges[1::2]))
-
-
 def _savgol(seq: PoseSequence, config: SmoothingConfig) -> PoseSequence:
     kp = seq.keypoints.copy()
     window = max(int(round(config.window_s * seq.fps)) | 1, config.order + 2 | 1)
     for j in range(kp.shape[1]):
-        for start, stop in _runs(kp[:, j, 2] > 0):
+        for start, stop in true_runs(kp[:, j, 2] > 0):
             if stop - start >= window:
                 kp[start:stop, j, :2] = savgol_filter(kp[start:stop, j, :2], window, config.order, axis=0)
     return seq.replace(kp)

@@ -169,6 +169,12 @@ def to_dancing2music(seq: PoseSequence) -> np.ndarray:
     return seq.keypoints[:, list(D2M14_TO_BODY25), :2].copy()
 
 
+def true_runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """``(start, stop)`` index ranges where the ``[T]`` bool ``mask`` is True, in order."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], np.asarray(mask).astype(np.int8), [0]])))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+
+
 def interpolate_missing(seq: PoseSequence, min_confidence: float = 0.1, max_gap: int | None = None) -> PoseSequence:
     """Fill absent joints (confidence < ``min_confidence``) linearly in time, per joint.
 
@@ -186,11 +192,9 @@ def interpolate_missing(seq: PoseSequence, min_confidence: float = 0.1, max_gap:
         for c in (0, 1):
             kp[~seen, j, c] = np.interp(t[~seen], t[seen], kp[seen, j, c])
         kp[~seen, j, 2] = min_confidence
-        if max_gap is not None:
-            edges = np.flatnonzero(np.diff(np.r_[0, (~seen).astype(np.int8), 0]))
-            for start, stop in zip(edges[::2], edges[1::2]):
-                if stop - start > max_gap:
-                    kp[start:stop, j, 2] = 0.0
+        for start, stop in true_runs(~seen) if max_gap is not None else []:
+            if stop - start > max_gap:
+                kp[start:stop, j, 2] = 0.0
     return seq.replace(kp)
 
 
