@@ -8,8 +8,11 @@ Rows ("contenders"):
   * one row per model run folder (:func:`stage1_pose.generate.generate_dance`).
 Each row is evaluated ``trials`` times with seeds 0..trials-1; table values are mean +- std over trials.
 FID compares windows (the style classifier's ``window_frames``, 4 s) of the row's dances with the windows of
-the training split's real dances. Physical plausibility is judged against the song's real dance: bone lengths
-against the median length of each bone over the real dance, joint speed as a multiple of the real dances' speed.
+the training split's real dances. Physical plausibility: bone lengths against the median length of each bone over
+the same dance (whether the dancer keeps one body; which body it is, stage 2 retargets onto the target person), joint
+speed as a multiple of the real dances' speed on the same songs.
+Report files: ``report.md``, ``report.json``, ``fid_over_time.png``, ``beat_alignment.png``, ``videos/<row>.mp4``
+and, on request, ``grid.mp4`` (every row dancing to the first test song side by side, flashing on its beats).
 """
 
 from __future__ import annotations
@@ -227,12 +230,12 @@ def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[He
 
 def score_dance(dance: PoseSequence, song: HeldOutSong, clf: LoadedStyleClassifier) -> DanceScores:
     """Classifier embedding, both kinematic beat sets (frame indices) and the motion measures of one dance to
-    ``song``; bone lengths are compared with the median lengths of the song's real dance."""
+    ``song``; bone lengths are compared with the dance's own median lengths (a body that keeps its proportions)."""
     pred, feat, windows = clf.embed(dance)
     xy = dance.xy
     return DanceScores(pred, feat, windows, np.asarray(kinematic_beats(xy, dance.fps)),
                        np.asarray(velocity_minimum_beats(xy, dance.fps)),
-                       bone_length_errors(xy, reference_bone_lengths(song.real.xy)), mean_speed(xy, dance.fps),
+                       bone_length_errors(xy, reference_bone_lengths(xy)), mean_speed(xy, dance.fps),
                        legs_arms_speed_ratio(xy, dance.fps), mean_jerk(xy, dance.fps))
 
 
@@ -353,7 +356,7 @@ def write_report(out_dir: Path, rows: list[RowResult], info: dict) -> None:
             "beat is within "
             f"±{info['tolerance_frames']} frames. BAS σ = {metrics.DEFAULT_BAS_SIGMA_SECONDS} s. "
             "Multimodality is over seeds for the same song (– where undefined). Bone-length error: |length − the "
-            "median length of that bone in the song's real dance| / that median, mean and 99th percentile over "
+            "median length of that bone over the same dance| / that median, mean and 99th percentile over "
             "frames and bones; speed: mean joint speed / the real dances' on the same songs; legs/arms: mean "
             "speed of knees, ankles and feet / of elbows and wrists; jerk: mean |d³x/dt³| of the joints.\n\n"
             "![FID over time](fid_over_time.png)\n\n![Beat alignment](beat_alignment.png)\n")
@@ -373,6 +376,7 @@ class EvaluationOptions:
     tolerance_frames: float = metrics.DEFAULT_TOLERANCE_FRAMES
     video_seconds: float = 10.0
     plot_seconds: float = 12.0
+    grid_video: bool = False
 
 
 def obtain_classifier(ds: DanceDataset, options: EvaluationOptions) -> tuple[LoadedStyleClassifier, str]:
@@ -415,10 +419,11 @@ def run_evaluation(data_dir: str | os.PathLike, model_dirs: list[str], out_dir: 
                    options: EvaluationOptions) -> list[RowResult]:
     """Evaluate the baselines and every model in ``model_dirs`` on the test split of ``data_dir``.
 
-    Writes ``report.md``, ``report.json``, ``fid_over_time.png``, ``beat_alignment.png`` and
-    ``videos/<row>.mp4`` (first test song, ``video_seconds`` long, with the song) into ``out_dir``.
+    Writes ``report.md``, ``report.json``, ``fid_over_time.png``, ``beat_alignment.png``,
+    ``videos/<row>.mp4`` (first test song, ``video_seconds`` long, with the song) and with ``options.grid_video``
+    ``grid.mp4`` (the same clips side by side: real dances, the models, then the other baselines) into ``out_dir``.
     """
-    from dancesynth.core.draw import write_skeleton_video
+    from dancesynth.core.draw import write_grid_video, write_skeleton_video
     from dancesynth.core.plots import plot_fid_over_time
 
     if options.trials < 1 or options.seconds <= 0:
@@ -438,7 +443,9 @@ def run_evaluation(data_dir: str | os.PathLike, model_dirs: list[str], out_dir: 
                               "train one on this dataset with `dancesynth train-style-classifier`.")
     songs = load_songs(ds, options.seconds)
     ref = load_reference(ds, clf)
-    contenders = baseline_contenders(songs, ref) + [model_contender(m, ds, songs, options.device) for m in model_dirs]
+    baselines = baseline_contenders(songs, ref)
+    models = [model_contender(m, ds, songs, options.device) for m in model_dirs]
+    contenders = baselines + models
     samples: dict[str, PoseSequence] = {}
 
     def keep_first(row: str, i: int, seed: int, dance: PoseSequence) -> None:
@@ -457,11 +464,16 @@ def run_evaluation(data_dir: str | os.PathLike, model_dirs: list[str], out_dir: 
     _beat_figure(songs, samples, out_dir, options.plot_seconds)
     song = songs[0]
     n_video = int(round(options.video_seconds * fps))
-    for name, dance in track(samples.items(), desc="sample videos", unit="video"):
-        clip = dance.slice_frames(0, n_video)
+    clips = {name: dance.slice_frames(0, n_video) for name, dance in samples.items()}
+    for name, clip in track(clips.items(), desc="sample videos", unit="video"):
         audio = song.samples[: int(round(len(clip) / fps * song.sr))]
         write_skeleton_video(clip, out_dir / "videos" / f"{_file_name(name)}.mp4", audio=audio, audio_sr=song.sr,
                              size=(640, 360))
+    if options.grid_video:
+        # The real dance first so every model is read against it, the mismatched/frozen baselines last.
+        names = [c.name for c in [baselines[0], *models, *baselines[1:]]]
+        write_grid_video([clips[name] for name in names], names, out_dir / "grid.mp4", beats=song.beats,
+                         audio=song.samples, audio_sr=song.sr)
     return rows
 
 

@@ -75,10 +75,14 @@ def _count(value: Any) -> int:
     return value
 
 
-def epoch_order(num_items: int, seed: int, epoch: int) -> list[int]:
-    """The shuffled window order of ``epoch``: depends only on ``seed`` and ``epoch`` (exact resume)."""
+def epoch_order(num_items: int, seed: int, epoch: int, length: int = 0) -> list[int]:
+    """The shuffled window order of ``epoch``: depends only on ``seed`` and ``epoch`` (exact resume). ``length``
+    windows (0: ``num_items``, one pass), passing over the data in fresh permutations as often as needed."""
     g = torch.Generator().manual_seed(seed * 1_000_003 + epoch)
-    return torch.randperm(num_items, generator=g).tolist()
+    order: list[int] = []
+    while len(order) < max(length, 1):
+        order += torch.randperm(num_items, generator=g).tolist()
+    return order[:length or num_items]
 
 
 def rank_batches(order: list[int], batch_size: int, rank: int, world: int) -> list[list[int]]:
@@ -96,6 +100,8 @@ class PoseTrainer:
         self.method_name, self.folder, self.options, self.device = method_name, run, options, device
         self.run_dir, self.rank, self.world = run.path, run.rank, run.world
         self.epochs = options.epochs or config.epochs
+        # A preset's epoch may be a fixed number of windows, so a small dataset gets as many steps as a large one.
+        self.epoch_windows = config.epoch_windows
         self.batch_size = options.batch_size or config.batch_size
         if self.batch_size % self.world:
             raise DancesynthError(f"The batch size {self.batch_size} must be a multiple of the {self.world} "
@@ -185,8 +191,8 @@ class PoseTrainer:
         stopped = False
         while self.epoch < self.epochs and not stopped:
             started = time.monotonic()
-            batches = rank_batches(epoch_order(len(self.data), opts.seed, self.epoch), self.batch_size,
-                                   self.rank, self.world)
+            order = epoch_order(len(self.data), opts.seed, self.epoch, self.epoch_windows)
+            batches = rank_batches(order, self.batch_size, self.rank, self.world)
             # Its own generator: a DataLoader iterator otherwise draws a seed from the global RNG, which would
             # make a resumed run's dropout/noise differ from the uninterrupted run's.
             loader = torch.utils.data.DataLoader(self.data, batch_sampler=batches[self.batch_index:],

@@ -22,6 +22,7 @@ import numpy as np
 from dancesynth.core.motion import bone_lengths
 from dancesynth.core.skeleton import (
     BODY25_LIMBS,
+    BODY25_TREE,
     JOINT_INDEX,
     PRESENT_CONFIDENCE,
     ROOT,
@@ -30,22 +31,6 @@ from dancesynth.core.skeleton import (
 )
 from stage2_video.normalize import MIN_CONFIDENCE
 
-
-def _tree_order() -> tuple[tuple[int, int, int], ...]:
-    """``(bone, parent, child)`` for every bone, parents before children, walking the skeleton from the root."""
-    order, reached, frontier = [], {ROOT}, [ROOT]
-    while frontier:
-        joint = frontier.pop(0)
-        for bone, ends in enumerate(BODY25_LIMBS):
-            if joint in ends and (other := ends[1] if ends[0] == joint else ends[0]) not in reached:
-                order.append((bone, joint, other))
-                reached.add(other)
-                frontier.append(other)
-    return tuple(order)
-
-
-# BODY25_LIMBS is a tree: from MidHip, Neck-MidHip is walked towards the neck, the other bones parent to child.
-TREE = _tree_order()
 
 # Bones summed into a body height: nose-neck, neck-midhip, and hip-knee-ankle (mean of the sides known).
 def _bones(*pairs: tuple[str, str]) -> tuple[int, ...]:
@@ -112,7 +97,7 @@ def retarget(seq: PoseSequence, lengths: np.ndarray) -> PoseSequence:
     if seen[ROOT]:
         center = old[present[:, ROOT], ROOT].mean(axis=0)
         new[:, ROOT] = center + ratio * (old[:, ROOT] - center)
-    for bone, parent, child in TREE:
+    for bone, parent, child in BODY25_TREE:
         vector = old[:, child] - old[:, parent]
         norm = np.linalg.norm(vector, axis=-1, keepdims=True)
         length = lengths[bone] if lengths[bone] > 0 else norm

@@ -19,11 +19,13 @@ cross-modal distance. The style classifier is trained once and cached in DATA/st
 --classifier gives one (train it with `dancesynth train-style-classifier`).
 
 Writes into REPORT_DIR: report.md (table), report.json (every number, per trial), fid_over_time.png,
-beat_alignment.png and videos/<row>.mp4 (skeleton previews with the song).
+beat_alignment.png and videos/<row>.mp4 (skeleton previews with the song); with --grid-video also grid.mp4:
+every row dancing to the same test song side by side (real dance first), flashing on each music beat.
 
 examples:
   dancesynth evaluate --data data/builtin --models runs/dance_revolution runs/lstm --out reports/stage1
   dancesynth evaluate --data data/builtin --out reports/baselines --trials 2 --seconds 30
+  dancesynth evaluate --data data/builtin --models runs/lstm --out reports/lstm --grid-video
 """
 
 logger = logging.getLogger(__name__)
@@ -44,14 +46,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tolerance", type=non_negative_float, dest="tolerance_frames",
                         help="beat hit tolerance in pose frames (default ±2)")
     parser.add_argument("--video-seconds", type=positive_float, help="length of the sample videos (default 10 s)")
+    parser.add_argument("--grid-video", action="store_true",
+                        help="also write grid.mp4: every row side by side on the first test song, beats flashing")
     parser.add_argument("--device", help="auto, cpu or cuda (default auto)")
 
 
 def run(args: argparse.Namespace) -> None:
     from stage1_pose.evaluate import EvaluationOptions, markdown_table, run_evaluation
 
-    names = ("trials", "seconds", "device", "classifier", "classifier_preset", "tolerance_frames", "video_seconds")
+    names = ("trials", "seconds", "device", "classifier", "classifier_preset", "tolerance_frames", "video_seconds",
+             "grid_video")
     options = EvaluationOptions(**{k: getattr(args, k) for k in names if getattr(args, k) is not None})
     rows = run_evaluation(args.data, args.models, args.out, options)
     logger.info(markdown_table(rows))
-    logger.info(f"wrote {args.out}/report.md, report.json, fid_over_time.png, beat_alignment.png, videos/")
+    grid = ", grid.mp4" if options.grid_video else ""
+    logger.info(f"wrote {args.out}/report.md, report.json, fid_over_time.png, beat_alignment.png, videos/{grid}")

@@ -36,6 +36,22 @@ BODY25_LIMBS: tuple[tuple[int, int], ...] = (
     (11, 22), (22, 23), (11, 24),
 )
 
+def _tree_order() -> tuple[tuple[int, int, int], ...]:
+    """``(bone, parent, child)`` for every bone, parents before children, walking the skeleton from the root."""
+    order, reached, frontier = [], {ROOT}, [ROOT]
+    while frontier:
+        joint = frontier.pop(0)
+        for bone, ends in enumerate(BODY25_LIMBS):
+            if joint in ends and (other := ends[1] if ends[0] == joint else ends[0]) not in reached:
+                order.append((bone, joint, other))
+                reached.add(other)
+                frontier.append(other)
+    return tuple(order)
+
+
+# BODY25_LIMBS is a tree: from MidHip, Neck-MidHip is walked towards the neck, the other bones parent to child.
+BODY25_TREE: tuple[tuple[int, int, int], ...] = _tree_order()
+
 # OpenPose's BODY_25 joint colours (RGB); a limb takes its child joint's colour.
 BODY25_COLORS: tuple[tuple[int, int, int], ...] = (
     (255, 0, 85), (255, 0, 0), (255, 85, 0), (255, 170, 0), (255, 255, 0), (170, 255, 0), (85, 255, 0),

@@ -2,10 +2,12 @@
 
 import json
 
+import numpy as np
 import pytest
 import torch
 
 from apps.cli import main
+from dancesynth.core import media
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -27,7 +29,7 @@ def test_evaluate_a_tiny_lstm_end_to_end(tmp_path, capsys):
                  "--epochs", "1", "--batch-size", "2", "--window", "30", "--preview-every", "0",
                  "--device", "cpu"]) == 0
     assert main(["evaluate", "--data", str(data), "--models", str(run), "--out", str(out), "--classifier", str(clf),
-                 "--trials", "2", "--seconds", "6", "--video-seconds", "1", "--device", "cpu"]) == 0
+                 "--trials", "2", "--seconds", "6", "--video-seconds", "1", "--device", "cpu", "--grid-video"]) == 0
     printed = capsys.readouterr().err
     assert "| lstm |" in printed and "| real dances |" in printed
     rows = {r["name"]: r for r in json.loads((out / "report.json").read_text())["rows"]}
@@ -38,6 +40,13 @@ def test_evaluate_a_tiny_lstm_end_to_end(tmp_path, capsys):
     assert rows["lstm"]["multimodality"] == pytest.approx(0.0, abs=1e-9)
     assert len(rows["lstm"]["per_trial"]["fid"]) == 2
     assert (out / "videos" / "lstm.mp4").is_file()
+    # Grid: real dances, lstm, random real dance in the first row of 426 x 240 tiles, the frozen pose below.
+    frames = list(media.read_frames(out / "grid.mp4"))
+    assert len(frames) == 15 and frames[0].shape == (480, 1278, 3)
+    inner = (slice(40, 230), slice(20, 406))  # a tile without its beat-flash border and label
+    moved = [np.abs(frames[-1][r * 240:, c * 426:].astype(int)[inner] - frames[0][r * 240:, c * 426:][inner]).mean()
+             for r, c in ((0, 0), (1, 0))]
+    assert moved[0] > 1.0 and moved[1] < 0.5
 
 
 def test_errors_are_one_sentence_without_traceback(tmp_path, capsys):

@@ -65,3 +65,28 @@ def test_skeleton_frames_keep_aspect_ratio_and_write_video(tmp_path):
     draw.write_skeleton_video(seq, path, audio=np.zeros(22050, np.float32) + 0.1, audio_sr=22050, size=(96, 64))
     streams = media.probe_streams(path)
     assert streams["video_frames"] == 6 and abs(streams["audio_duration"] - 0.4) <= 1 / 15
+
+
+def test_grid_frames_tile_labelled_dances_and_flash_on_beats(tmp_path):
+    seq = PoseSequence(np.stack([standing_pose(320, 180)] * 8), 15.0, 320, 180)
+    labels = ["real dances", "lstm", "a model folder with a very long name indeed", "mean pose (frozen)"]
+    frames = list(draw.grid_frames([seq] * 4, labels, beats=np.array([0.2]), columns=3, width=640))
+    assert len(frames) == 8 and frames[0].shape == (240, 636, 3)  # 2 rows x 3 columns of 212 x 120 tiles
+    tiles = [frames[0][r * 120:(r + 1) * 120, c * 212:(c + 1) * 212] for r in range(2) for c in range(3)]
+    # Labels are the only pure white in a frame between beats; the two empty tiles of the last row stay black.
+    labelled = [bool((tile[:30] == 255).all(axis=2).any()) for tile in tiles]
+    assert labelled == [True, True, True, True, False, False]
+    assert not tiles[4].any() and not tiles[5].any()
+    # The beat at 0.2 s = frame 3 flashes frames 3 and 4: a bright border round every dance's tile.
+    edge = np.zeros((240, 636), bool)
+    for k in range(4):
+        edge[(k // 3) * 120 + 60, (k % 3) * 212:(k % 3) * 212 + 3] = True  # the left border, away from the label
+    flashing = [bool(frame[edge].mean() > 200) for frame in frames]
+    assert flashing == [False, False, False, True, True, False, False, False]
+    np.testing.assert_array_equal(frames[2], frames[5])
+    path = tmp_path / "grid.mp4"
+    draw.write_grid_video([seq] * 2, labels[:2], path, beats=np.array([0.2]), audio=np.full(22050, 0.1, np.float32),
+                          audio_sr=22050, width=400)
+    streams = media.probe_streams(path)
+    assert streams["video_frames"] == 8 and abs(streams["audio_duration"] - 8 / 15) <= 1 / 15
+    assert media.probe_video(path).width == 400

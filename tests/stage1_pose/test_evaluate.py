@@ -9,6 +9,8 @@ import soundfile
 import torch
 from test_style_classifier import toy_dance
 
+from dancesynth.core import media
+from dancesynth.core.skeleton import JOINT_INDEX, PoseSequence
 from stage1_pose.data.dataset import Clip, DanceDataset, clip_paths, create_layout, write_beats, write_manifest
 from stage1_pose.data.styles import STYLES
 from stage1_pose.data.synth_dance import synthesize_dance
@@ -75,7 +77,7 @@ def report(tmp_path_factory):
     data = build_dataset(tmp_path_factory.mktemp("data"))
     out = tmp_path_factory.mktemp("report")
     options = EvaluationOptions(trials=2, seconds=SECONDS, device="cpu", classifier_preset="small",
-                                video_seconds=2.0, plot_seconds=SECONDS)
+                                video_seconds=2.0, plot_seconds=SECONDS, grid_video=True)
     rows = run_evaluation(data, [], out, options)
     return data, out, {r.name: r for r in rows}, options
 
@@ -93,6 +95,15 @@ def test_report_files_and_rows(report):
     assert saved["rows"][0]["multimodality"] is None  # undefined for the real dances, strict JSON null
     # The classifier was trained once and cached under the dataset folder.
     assert (data / "style_classifier" / "small" / "latest.json").is_file()
+
+
+def test_grid_video_shows_every_row_to_the_first_test_song_with_its_audio(report):
+    _, out, rows, _ = report
+    streams = media.probe_streams(out / "grid.mp4")
+    info = media.probe_video(out / "grid.mp4")
+    # Three rows in one row of three 426 x 240 tiles, 2 s at 15 fps, with the song.
+    assert streams["video_frames"] == 30 and (info.width, info.height) == (1278, 240)
+    assert streams["audio_codec"] == "aac" and abs(streams["audio_duration"] - 2.0) <= 1 / 15
 
 
 def test_real_dances_are_recognised_and_closer_to_training_data_than_a_frozen_pose(report):
@@ -126,7 +137,7 @@ def test_plausibility_columns_in_the_report_with_known_answers_for_the_reference
     assert real["legs_arms"]["mean"] > 0 and real["jerk"]["mean"] > 0
     assert frozen["speed_vs_real"]["mean"] == 0.0 and frozen["jerk"]["mean"] == 0.0
     assert np.isnan(frozen["legs_arms"]["mean"])  # nothing moves: the ratio is undefined
-    assert rows[FROZEN].per_trial["bone_error"][0] > 0  # the mean training pose is not the test dancer's body
+    assert rows[FROZEN].per_trial["bone_error"][0] == pytest.approx(0.0, abs=1e-6)  # one body, held still
 
 
 def test_built_in_real_dances_have_zero_bone_length_error(report):
@@ -144,6 +155,18 @@ def test_built_in_real_dances_have_zero_bone_length_error(report):
     assert row["bone_error"]["mean"] == pytest.approx(0.0, abs=1e-4)
     assert row["bone_error_p99"]["mean"] == pytest.approx(0.0, abs=1e-4)
     assert row["speed_vs_real"]["mean"] == pytest.approx(1.0)
+    # The same dances with the right forearm twice as long in every third frame: a body that does not keep its length.
+    elbow, wrist = JOINT_INDEX["RElbow"], JOINT_INDEX["RWrist"]
+
+    def stretched(i: int, seed: int) -> PoseSequence:
+        kp = songs[i].real.keypoints.copy()
+        kp[::3, wrist, :2] += kp[::3, wrist, :2] - kp[::3, elbow, :2]
+        return songs[i].real.replace(kp)
+
+    row = evaluate_contender(Contender("stretched", stretched, stochastic=False), songs, ref, clf,
+                             trials=1, tolerance_frames=2).summary()
+    assert row["bone_error_p99"]["mean"] == pytest.approx(1.0, abs=0.01)  # +100 % on 1 of 24 bones in 1/3 of frames
+    assert row["bone_error"]["mean"] == pytest.approx(1 / 72, abs=0.003)
 
 
 def test_fit_length_cuts_and_loops():

@@ -16,8 +16,8 @@ from stage1_pose.train import TrainerConfig, epoch_order, rank_batches, train  #
 
 REPO = Path(__file__).resolve().parents[2]
 TINY_DR = dict(d_model=16, heads=2, d_k=8, d_v=8, d_ff=32, layers=1, window=6, dropout=0.1, lstm_hidden=32,
-               window_frames=30, batch_size=4, lam=1.0, q=3)
-TINY_LSTM = dict(hidden=16, layers=2, dropout=0.0, window_frames=30, batch_size=4)
+               window_frames=30, batch_size=4, lam=1.0, q=3, epoch_windows=0)
+TINY_LSTM = dict(hidden=16, layers=2, dropout=0.0, window_frames=30, batch_size=4, epoch_windows=0)
 
 
 def _weights(run: Path) -> dict[str, torch.Tensor]:
@@ -26,6 +26,10 @@ def _weights(run: Path) -> dict[str, torch.Tensor]:
 
 def test_data_order_depends_only_on_seed_and_epoch():
     assert epoch_order(50, 0, 3) == epoch_order(50, 0, 3) != epoch_order(50, 0, 4)
+    # A fixed-size epoch passes over a small dataset again, every window as often as the others (+-1).
+    longer = epoch_order(10, 0, 3, 25)
+    assert len(longer) == 25 and longer[:10] == epoch_order(10, 0, 3)
+    assert sorted(longer.count(i) for i in range(10)) == [2] * 5 + [3] * 5
     batches = [rank_batches(list(range(10)), 4, r, 2) for r in (0, 1)]
     assert batches == [[[0, 1], [4, 5]], [[2, 3], [6, 7]]]
 

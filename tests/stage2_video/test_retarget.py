@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from dancesynth.core.motion import bone_lengths
-from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX, ROOT, PoseSequence
+from dancesynth.core.skeleton import BODY25_LIMBS, BODY25_TREE, JOINT_INDEX, ROOT, PoseSequence
 from stage2_video.normalize import fit_normalization
 from stage2_video.render import load_appearance_model
-from stage2_video.retarget import TREE, body_height, retarget, retarget_onto, target_bone_lengths
+from stage2_video.retarget import body_height, retarget, retarget_onto, target_bone_lengths
 
 ARM_BONES = [BODY25_LIMBS.index((JOINT_INDEX[a], JOINT_INDEX[b]))
              for a, b in (("RShoulder", "RElbow"), ("RElbow", "RWrist"), ("LShoulder", "LElbow"), ("LElbow", "LWrist"))]
@@ -29,7 +29,7 @@ def dance(standing: np.ndarray, lengths: np.ndarray, frames: int = 40, legs_move
     rng = np.random.default_rng(0)
     xy = np.zeros((frames, 25, 2))
     xy[:, ROOT] = np.concatenate([size[0] / 2 + 60 * np.sin(1.3 * t), size[1] / 2 + 15 * np.cos(2.1 * t)], axis=1)
-    for bone, parent, child in TREE:
+    for bone, parent, child in BODY25_TREE:
         base = standing[child] - standing[parent]
         swing = 1.2 if bone in ARM_BONES else 0.4 if legs_move else 0.0
         angle = np.arctan2(base[1], base[0]) + swing * np.sin(rng.uniform(1, 4) * t + rng.uniform(0, 6))

@@ -13,7 +13,9 @@ decoder forgets its initial state within a few frames and seeds then give the sa
 only through its own fed-back poses and the moves then drift off the beat; and (``z_smoothing``) the music's
 term of the output is smoothed in time, because ``z_i`` follows the frame-to-frame changes of the features and made
 the body jitter; and (``speed_weight``) the loss also compares each joint's speed with the real dance's, because
-with the pose loss alone the dances neither slowed down on the beat nor moved at the real dances' speed.
+with the pose loss alone the dances neither slowed down on the beat nor moved at the real dances' speed; and
+(``kinematic_output``) the output rows are a root position and bone directions placed by forward kinematics
+(:mod:`stage1_pose.models.kinematics`), because the paper's free joint positions let bones change length.
 Curriculum (Sec. 3.3): decoder inputs alternate ``p`` of its own predictions with ``q`` ground-truth frames,
 ``p = f(epoch)`` growing with one of const, ⌊λt⌋, ⌊λt²⌋, ⌊λeᵗ⌋; L1 loss.
 
@@ -44,6 +46,7 @@ from stage1_pose.models.dance_revolution.segment_latent import (
     kl_with_free_bits,
     prior_codes,
 )
+from stage1_pose.models.kinematics import KinematicOutput, speed_loss
 
 POSE_DIM = NUM_JOINTS * 2
 SCHEDULES = ("const", "linear", "quadratic", "exponential")
@@ -67,7 +70,9 @@ class DanceRevolutionConfig:
     has when the direction of the next move is uncertain (the median of moves in all directions is no move).
     ``beat_phase_input`` appends the beat phase (sin, cos) of each frame to every decoder input, and
     ``z_smoothing`` > 0 smooths the music's term ``z_i W_z`` of the output over a Gaussian of that many frames
-    (neither is in the paper).
+    (neither is in the paper). ``kinematic_output`` places the output by forward kinematics with the training
+    data's body; ``epoch_windows`` > 0 makes an epoch that many training windows whatever the dataset's size
+    (0: one pass), so the curriculum, which counts epochs, and the number of steps do not shrink with the data.
     """
 
     feature_dim: int = 438
@@ -97,6 +102,8 @@ class DanceRevolutionConfig:
     speed_weight: float = 0.0
     beat_phase_input: bool = False
     z_smoothing: float = 0.0
+    kinematic_output: bool = False
+    epoch_windows: int = 0
 
     def __post_init__(self) -> None:
         if self.curriculum not in SCHEDULES:
@@ -124,7 +131,8 @@ DANCE_REVOLUTION_PRESETS: dict[str, DanceRevolutionConfig] = {
     "small": DanceRevolutionConfig(d_model=64, heads=4, d_k=16, d_v=16, d_ff=128, layers=2, window=30,
                                    lstm_hidden=128, lam=1.0, lr=1e-3, batch_size=16, window_frames=450, epochs=60,
                                    code_dim=8, code_on_beats=True, kl_weight=0.002, free_bits=0.25,
-                                   speed_weight=5.0, beat_phase_input=True, z_smoothing=4.0),
+                                   speed_weight=5.0, beat_phase_input=True, z_smoothing=4.0,
+                                   kinematic_output=True, epoch_windows=144),
 }
 
 
@@ -262,14 +270,6 @@ class LSTMStepper:
         return new_h, new_c
 
 
-def differentiable_joint_speeds(poses: torch.Tensor) -> torch.Tensor:
-    """The speed loss's measure: ``[B, T, 50]`` flattened poses -> ``[B, T - 1, 25]`` each joint's distance moved
-    per frame (model units), with a gradient also where a joint stands still (the numpy measure of dances is
-    :func:`dancesynth.core.motion.joint_speeds`)."""
-    step = poses.diff(dim=1).unflatten(2, (NUM_JOINTS, 2))
-    return (step.pow(2).sum(-1) + 1e-8).sqrt()
-
-
 def extra_dim(cfg: DanceRevolutionConfig) -> int:
     """Numbers appended to each decoder input: the choreography code and the beat phase's (sin, cos)."""
     return cfg.code_dim + (2 if cfg.beat_phase_input else 0)
@@ -302,6 +302,14 @@ class PoseDecoder(nn.Module):
         self.out_h = nn.Linear(cfg.lstm_hidden, POSE_DIM, bias=False)
         self.out_z = nn.Linear(cfg.d_model, POSE_DIM)
         self.z_smoothing = cfg.z_smoothing
+        self.kinematics = KinematicOutput() if cfg.kinematic_output else None
+
+    def place(self, raw: torch.Tensor, lengths: torch.Tensor | None = None) -> torch.Tensor:
+        """Output rows ``[..., 50]`` -> flattened poses ``[..., 50]``: themselves, or with kinematic output placed
+        with bones of ``lengths`` (``[B, 25]`` per step, ``[B, 1, 25]`` per sequence; default the mean body)."""
+        if self.kinematics is None:
+            return raw
+        return self.kinematics(raw.unflatten(-1, (NUM_JOINTS, 2)), lengths).flatten(-2)
 
     def initial_state(self, batch: int, device: torch.device,
                       generator: torch.Generator | None = None) -> tuple[torch.Tensor, torch.Tensor]:
@@ -312,8 +320,9 @@ class PoseDecoder(nn.Module):
         return state[0].contiguous(), state[1].contiguous()
 
     def forward(self, z: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor], targets: torch.Tensor,
-                predicted: list[bool], extras: torch.Tensor) -> torch.Tensor:
-        """Training: ``z [B, T, d_model]``, ``targets [B, T, 50]``, ``extras [B, T, extra_dim]`` -> ``[B, T, 50]``.
+                predicted: list[bool], extras: torch.Tensor, lengths: torch.Tensor | None = None) -> torch.Tensor:
+        """Training: ``z [B, T, d_model]``, ``targets [B, T, 50]``, ``extras [B, T, extra_dim]`` (and with kinematic
+        output the clips' bodies ``lengths [B, 1, 25]``) -> ``[B, T, 50]``.
 
         Input i is the begin-of-pose (i = 0), the model's previous output where ``predicted[i]``, else
         ``targets[:, i-1]``; each with ``extras[:, i]`` appended.
@@ -329,7 +338,8 @@ class PoseDecoder(nn.Module):
         while i < frames:
             if predicted[i]:
                 h, c = stepper.step(torch.cat([outputs[-1][:, -1], extras[:, i]], dim=1), h, c)
-                outputs.append((self.out_h(h[-1]) + zw[:, i])[:, None])
+                step_lengths = None if lengths is None else lengths[:, 0]
+                outputs.append(self.place(self.out_h(h[-1]) + zw[:, i], step_lengths)[:, None])
                 i += 1
                 continue
             j = i + 1
@@ -337,7 +347,7 @@ class PoseDecoder(nn.Module):
                 j += 1
             seq, (hs, cs) = self.lstm(shifted[:, i:j], (torch.stack(h), torch.stack(c)))
             h, c = list(hs.unbind(0)), list(cs.unbind(0))
-            outputs.append(self.out_h(seq) + zw[:, i:j])
+            outputs.append(self.place(self.out_h(seq) + zw[:, i:j], lengths))
             i = j
         return torch.cat(outputs, dim=1)
 
@@ -357,7 +367,7 @@ class PoseDecoder(nn.Module):
         y = z.new_zeros(batch, POSE_DIM)
         for i in range(frames):
             h, c = stepper.step(torch.cat([y, extras[:, i]], dim=1), h, c)
-            y = self.out_h(h[-1]) + zw[:, i]
+            y = self.place(self.out_h(h[-1]) + zw[:, i])
             out[:, i] = y
         return out
 
@@ -397,14 +407,16 @@ class DanceRevolution(Stage1Method):
         else:
             codes, kl = self.posterior.sample(target, self.segments(batch.beats))
         extras = self.decoder_extras(batch.beats, codes)
-        pred = self.decoder(z, state, target, predicted_inputs(frames, self.p, self.config.q), extras)
+        kinematics = self.decoder.kinematics
+        lengths = None if kinematics is None else kinematics.observe(batch.poses)
+        pred = self.decoder(z, state, target, predicted_inputs(frames, self.p, self.config.q), extras, lengths)
         l1 = F.l1_loss(pred, target)
         loss, scalars = l1, {"l1": l1.item(), "p": float(self.p)}
         if kl is not None:
             loss = loss + self.config.kl_weight * kl_with_free_bits(kl, self.config.free_bits)
             scalars["kl"] = kl.mean().item()
         if self.config.speed_weight:
-            speed = F.l1_loss(differentiable_joint_speeds(pred), differentiable_joint_speeds(target))
+            speed = speed_loss(pred.unflatten(2, (NUM_JOINTS, 2)), batch.poses)
             loss = loss + self.config.speed_weight * speed
             scalars["speed"] = speed.item()
         self.optimize("main", loss)

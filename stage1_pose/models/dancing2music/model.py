@@ -41,6 +41,7 @@ from dancesynth.core.skeleton import NUM_JOINTS, ROOT
 from stage1_pose.models.base import Batch, Stage1Method, bce_with_constant_target
 from stage1_pose.models.dancing2music import dance_units as du
 from stage1_pose.models.gaussian import kl_to_standard_normal, reparameterize
+from stage1_pose.models.kinematics import KinematicOutput, bone_vectors, forward_kinematics, joint_lengths
 
 POSE_DIM = NUM_JOINTS * 2
 PHASES = ("decomposition", "composition")
@@ -72,6 +73,9 @@ class Dancing2MusicConfig:
     interval by at most ``warp_stretch``; 1 puts the normalised beat frames on the music beats. ``beat_accent`` > 0
     makes the units decelerate on every music beat (:func:`stage1_pose.models.dancing2music.dance_units.warp_units`);
     ``warp_stretch`` 1 and ``beat_accent`` 0 are the paper's warper.
+    ``kinematic_output`` (not in the paper) decodes units by forward kinematics (see :class:`UnitDecoder`) and warps
+    their bone vectors, so bones keep their length; ``epoch_windows`` > 0 makes an epoch that many training windows
+    whatever the dataset's size (0: one pass), so the phases, which count epochs, do not shrink with the data.
     """
 
     feature_dim: int = 28
@@ -107,6 +111,8 @@ class Dancing2MusicConfig:
     redraw_tries: int = 10
     warp_stretch: float = 1.0
     beat_accent: float = 0.0
+    kinematic_output: bool = False
+    epoch_windows: int = 0
 
     def __post_init__(self) -> None:
         if not 1 <= self.min_units <= self.max_units:
@@ -135,7 +141,7 @@ _PAPER = Dancing2MusicConfig()
 # CPU-sized, with the learning rate, movement scale and beat warper that made dances move on the beat in minutes.
 _SMALL = Dancing2MusicConfig(gru_hidden=128, mlp_hidden=128, z_mov=32, z_dan=32, noise_dim=16, lr=3e-3,
                              batch_size=32, epochs=420, decomp_epochs=180, relative_movement=True, motion_scale=20.0,
-                             warp_stretch=2.0, beat_accent=0.3)
+                             warp_stretch=2.0, beat_accent=0.3, kinematic_output=True, epoch_windows=288)
 DANCING2MUSIC_PRESETS: dict[str, Dancing2MusicConfig] = {
     "paper": _PAPER,
     "small": _SMALL,
@@ -214,16 +220,27 @@ class UnitDecoder(nn.Module):
     step. Its outputs are displacements from an anchor pose, taken relative to the first step so frame 0 is the
     anchor exactly. The anchor is the unit's true first frame in training and the previous unit's last frame at
     test time, which makes consecutive units join without a jump; without one (a dance's first unit) it is z_ini
-    decoded by an MLP (``init_pose``). Displacements are ``scale`` times smaller than the network's outputs.
+    decoded by an MLP (``init_pose``). Displacements are ``scale`` times smaller than the network's outputs. With
+    ``kinematic`` they displace the anchor's bone vectors (:func:`~stage1_pose.models.kinematics.bone_vectors`) and
+    the unit is placed by forward kinematics with the anchor's bone lengths, so a dance keeps its first pose's body.
     """
 
-    def __init__(self, hidden: int, z_ini: int, z_mov: int, frames: int = du.UNIT_FRAMES, scale: float = 1.0) -> None:
+    def __init__(self, hidden: int, z_ini: int, z_mov: int, frames: int = du.UNIT_FRAMES, scale: float = 1.0,
+                 kinematic: bool = False) -> None:
         super().__init__()
         self.frames, self.scale = frames, scale
         self.init_pose = mlp([z_ini, hidden, hidden, POSE_DIM])
         self.h0 = nn.Linear(z_ini + z_mov, hidden)
         self.gru = nn.GRU(z_ini + z_mov + 1, hidden, batch_first=True)
         self.out = nn.Linear(hidden, POSE_DIM)
+        self.kinematics = KinematicOutput() if kinematic else None
+
+    def initial(self, z_ini: torch.Tensor) -> torch.Tensor:
+        """A dance's first pose ``[N, 50]`` from ``z_ini`` (with kinematic output: the training data's mean body)."""
+        pose = self.init_pose(z_ini)
+        if self.kinematics is None:
+            return pose
+        return self.kinematics(pose.unflatten(-1, (NUM_JOINTS, 2))).flatten(-2)
 
     def forward(self, z_ini: torch.Tensor, z_mov: torch.Tensor, anchor: torch.Tensor | None = None) -> torch.Tensor:
         codes = torch.cat([z_ini, z_mov], dim=-1)
@@ -232,8 +249,12 @@ class UnitDecoder(nn.Module):
                             phase[None, :, None].expand(codes.shape[0], -1, 1)], dim=-1)
         h = self.gru(inputs, torch.tanh(self.h0(codes))[None])[0]
         moves = self.out(h) / self.scale
-        anchor = self.init_pose(z_ini) if anchor is None else anchor
-        return anchor[:, None] + moves - moves[:, :1]
+        anchor = self.initial(z_ini) if anchor is None else anchor
+        if self.kinematics is None:
+            return anchor[:, None] + moves - moves[:, :1]
+        first = anchor.unflatten(-1, (NUM_JOINTS, 2))
+        raw = bone_vectors(first)[:, None] + (moves - moves[:, :1]).unflatten(-1, (NUM_JOINTS, 2))
+        return self.kinematics(raw, joint_lengths(first)[:, None]).flatten(-2)
 
 
 class MusicStyleClassifier(nn.Module):
@@ -325,7 +346,7 @@ class Dancing2MusicMethod(Stage1Method):
         c = config
         self.e_ini = InitialPoseEncoder(c.mlp_hidden, c.z_ini)
         self.e_mov = MovementEncoder(c.gru_hidden, c.z_mov, c.relative_movement, c.motion_scale)
-        self.g_uni = UnitDecoder(c.gru_hidden, c.z_ini, c.z_mov, scale=c.motion_scale)
+        self.g_uni = UnitDecoder(c.gru_hidden, c.z_ini, c.z_mov, scale=c.motion_scale, kinematic=c.kinematic_output)
         self.style = MusicStyleClassifier(c.feature_dim, c.style_hidden, c.num_styles)
         self.e_mtd = MovementToDanceEncoder(c.z_mov, c.gru_hidden, c.z_dan)
         self.g_dan = DanceToMovementDecoder(c.z_dan, c.gru_hidden, c.z_mov)
@@ -399,6 +420,8 @@ class Dancing2MusicMethod(Stage1Method):
     def decomposition_losses(self, units: torch.Tensor) -> dict[str, torch.Tensor]:
         """Eq. 3-5 on ``[N, 32, 25, 2]`` units: ``recon``, ``kl``, ``shift`` and the weighted ``total``."""
         c = self.config
+        if self.g_uni.kinematics is not None:
+            self.g_uni.kinematics.observe(units)
         u = shift_root(units, self.random_shift(units.shape[0], units.device))
         flat = u.flatten(2)
         mu_i, lv_i = self.e_ini(flat[:, 0])
@@ -409,7 +432,7 @@ class Dancing2MusicMethod(Stage1Method):
         # reconstruction from z_ini (used for a dance's first unit) is its own term.
         anchor = flat[:, 0]
         recon = (F.l1_loss(self.g_uni(z_ini, reparameterize(mu_m, lv_m), anchor), flat)
-                 + F.l1_loss(self.g_uni.init_pose(z_ini), anchor))
+                 + F.l1_loss(self.g_uni.initial(z_ini), anchor))
         # KL averaged over latent numbers and batch, so the weight λ_KL does not depend on the latent size.
         kl = kl_to_standard_normal(mu_i, lv_i) + kl_to_standard_normal(mu_m, lv_m)
         # A relative movement encoder subtracts the unit's first frame, which cancels a whole-unit shift exactly:
@@ -582,5 +605,16 @@ class Dancing2MusicMethod(Stage1Method):
             if self.config.warp_stretch > 1:
                 moves = kinematic_beats(absolute_positions(units.reshape(-1, NUM_JOINTS, 2)), self.config.fps)
                 unit_beats = du.align_beats(moves, len(grid), self.config.warp_stretch)
-            out.append(torch.from_numpy(du.warp_units(units, grid, t, unit_beats, self.config.beat_accent)))
+            out.append(self._warp(units, grid, t, unit_beats))
         return torch.stack(out).to(features.device)
+
+    def _warp(self, units: np.ndarray, grid: np.ndarray, frames: int, unit_beats: np.ndarray | None) -> torch.Tensor:
+        """:func:`~stage1_pose.models.dancing2music.dance_units.warp_units` of ``[n, 32, 25, 2]`` units -> ``[frames,
+        25, 2]``; kinematic units are warped as bone vectors and placed again with their body's lengths, since
+        interpolating joint positions shortens a turning bone."""
+        accent = self.config.beat_accent
+        if self.g_uni.kinematics is None:
+            return torch.from_numpy(du.warp_units(units, grid, frames, unit_beats, accent))
+        poses = torch.from_numpy(units)
+        raw = du.warp_units(bone_vectors(poses).numpy(), grid, frames, unit_beats, accent)
+        return forward_kinematics(torch.from_numpy(raw), joint_lengths(poses[0, 0]))

@@ -1,5 +1,6 @@
 """The LSTM baseline of Dance Revolution's comparison (after Shlizerman et al. 2018): music features ->
-stacked LSTM -> poses, one pose per frame, deterministic, trained with L1; it does not read the beats.
+stacked LSTM -> poses, one pose per frame, deterministic, trained with L1; it does not read the beats. The ``small``
+preset places its poses by forward kinematics (bones keep their length) and adds a loss on each joint's speed.
 
 Shapes: features ``[B, T, feature_dim]`` standardised features; poses ``[B, T, 25, 2]`` model coordinates.
 """
@@ -15,11 +16,18 @@ from torch import nn
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import NUM_JOINTS
 from stage1_pose.models.base import Batch, Stage1Method
+from stage1_pose.models.kinematics import KinematicOutput, speed_loss
 
 
 @dataclass(frozen=True)
 class LSTMConfig:
-    """``hidden`` units in each of ``layers`` LSTM layers; training window ``window_frames`` frames."""
+    """``hidden`` units in each of ``layers`` LSTM layers; training window ``window_frames`` frames.
+
+    Not in the baseline (``paper`` keeps it as published): ``kinematic_output`` places the poses by forward
+    kinematics (:mod:`stage1_pose.models.kinematics`); ``speed_weight`` adds an L1 loss between each joint's speed
+    and the real dance's (:func:`~stage1_pose.models.kinematics.speed_loss`); ``epoch_windows`` > 0 makes an epoch
+    that many training windows whatever the dataset's size (0: one pass).
+    """
 
     feature_dim: int = 438
     hidden: int = 1024
@@ -29,6 +37,9 @@ class LSTMConfig:
     batch_size: int = 32
     window_frames: int = 900
     epochs: int = 500
+    epoch_windows: int = 0
+    kinematic_output: bool = False
+    speed_weight: float = 0.0
 
     @classmethod
     def preset(cls, name: str) -> "LSTMConfig":
@@ -41,7 +52,9 @@ class LSTMConfig:
 LSTM_PRESETS: dict[str, LSTMConfig] = {
     # Sized like Dance Revolution's decoder and trained like it (Adam 1e-4, batch 32, 60-s windows).
     "paper": LSTMConfig(),
-    "small": LSTMConfig(hidden=128, layers=2, dropout=0.0, lr=1e-3, batch_size=16, window_frames=90, epochs=60),
+    # epoch_windows: what one pass over the built-in dataset's 48 training clips of 60 s gives.
+    "small": LSTMConfig(hidden=128, layers=2, dropout=0.0, lr=1e-3, batch_size=16, window_frames=90, epochs=60,
+                        epoch_windows=912, kinematic_output=True, speed_weight=5.0),
 }
 
 
@@ -56,19 +69,29 @@ class LSTMBaseline(Stage1Method):
         self.lstm = nn.LSTM(config.feature_dim, config.hidden, num_layers=config.layers, batch_first=True,
                             dropout=config.dropout if config.layers > 1 else 0.0)
         self.out = nn.Linear(config.hidden, NUM_JOINTS * 2)
+        self.kinematics = KinematicOutput() if config.kinematic_output else None
 
-    def forward(self, features: torch.Tensor) -> torch.Tensor:
-        """``[B, T, feature_dim]`` -> ``[B, T, 25, 2]``."""
+    def forward(self, features: torch.Tensor, lengths: torch.Tensor | None = None) -> torch.Tensor:
+        """``[B, T, feature_dim]`` -> ``[B, T, 25, 2]``; with kinematic output, bones of ``lengths`` (``[B, 1, 25]``,
+        default the training data's mean body)."""
         h, _ = self.lstm(features)
-        return self.out(h).reshape(features.shape[0], features.shape[1], NUM_JOINTS, 2)
+        out = self.out(h).reshape(features.shape[0], features.shape[1], NUM_JOINTS, 2)
+        return out if self.kinematics is None else self.kinematics(out, lengths)
 
     def configure_optimizers(self) -> dict[str, torch.optim.Optimizer]:
         return {"main": torch.optim.Adam(self.parameters(), lr=self.config.lr)}
 
     def training_step(self, batch: Batch, epoch: int) -> dict[str, float]:
-        loss = F.l1_loss(self(batch.features), batch.poses)
+        lengths = None if self.kinematics is None else self.kinematics.observe(batch.poses)
+        pred = self(batch.features, lengths)
+        l1 = F.l1_loss(pred, batch.poses)
+        loss, logs = l1, {"l1": l1.item()}
+        if self.config.speed_weight:
+            speed = speed_loss(pred, batch.poses)
+            loss = loss + self.config.speed_weight * speed
+            logs["speed"] = speed.item()
         self.optimize("main", loss)
-        return {"l1": loss.item()}
+        return logs
 
     @torch.no_grad()
     def generate(self, features: torch.Tensor, beats: torch.Tensor,

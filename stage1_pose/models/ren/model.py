@@ -26,6 +26,7 @@ from torch import nn
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import NUM_JOINTS
 from stage1_pose.models.base import Batch, Stage1Method, bce_with_constant_target
+from stage1_pose.models.kinematics import KinematicOutput, speed_loss
 from stage1_pose.models.ren.perceptual import PosePerceptualLoss
 from stage1_pose.models.ren.variety import best_of, held_noise
 
@@ -52,7 +53,10 @@ class RenConfig:
     and linearly interpolated in between (1 = a fresh draw every frame, as in the official code); with
     ``variety_samples`` K > 1 every training clip gets K noise draws and Eq. 7 is computed on the draw
     closest to the real dance (:mod:`stage1_pose.models.ren.variety`). With K = 1 the L1 and perceptual terms
-    make the generator ignore its noise, and per-frame noise can only make it shake.
+    make the generator ignore its noise, and per-frame noise can only make it shake. ``kinematic_output`` places
+    the poses by forward kinematics (:mod:`stage1_pose.models.kinematics`: bones keep their length);
+    ``speed_weight`` adds an L1 loss between each joint's speed and the real dance's (on the draw Eq. 7 uses);
+    ``epoch_windows`` > 0 makes an epoch that many training windows whatever the dataset's size (0: one pass).
     """
 
     samples_per_frame: int = 1024
@@ -89,6 +93,9 @@ class RenConfig:
     lr_d_global: float = 5e-4
     batch_size: int = 16
     epochs: int = 400
+    epoch_windows: int = 0
+    kinematic_output: bool = False
+    speed_weight: float = 0.0
 
     @property
     def uses_local_d(self) -> bool:
@@ -127,7 +134,8 @@ _PAPER = RenConfig()
 # CPU-sized (10 epochs < 20 min), with held noise, best of 4 draws and L1 weight 50 so the seed chooses the dance.
 _SMALL = RenConfig(window_frames=45, audio_channels=(8, 16, 32, 32), code_dim=64, gru_hidden=64,
                    mlp_hidden=128, mlp_blocks=2, dropout=0.1, d_channels=16, d_embed=64, attention_dim=16,
-                   batch_size=8, epochs=10, noise_std=1.0, noise_frames=45, variety_samples=4, w_l1=50.0)
+                   batch_size=8, epochs=10, noise_std=1.0, noise_frames=45, variety_samples=4, w_l1=50.0,
+                   epoch_windows=1872, kinematic_output=True, speed_weight=50.0)
 
 # "small" / "paper" are the full model; "<row>-small" / "<row>-paper" the ablation rows.
 REN_PRESETS: dict[str, RenConfig] = {"small": _SMALL, "paper": _PAPER}
@@ -222,16 +230,19 @@ class RenGenerator(nn.Module):
         self.blocks = nn.Sequential(*[ResidualBlock(config.mlp_hidden) for _ in range(config.mlp_blocks)])
         self.dropout = nn.Dropout(config.dropout)
         self.out = nn.Linear(config.mlp_hidden, NUM_JOINTS * 2)
+        self.kinematics = KinematicOutput() if config.kinematic_output else None
 
     def forward(self, audio: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
         return self.decode(self.music(audio), noise)
 
-    def decode(self, h: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
-        """Music codes ``h [B, T, 2 * gru_hidden]`` (from ``self.music``) + noise -> poses ``[B, T, 25, 2]``."""
+    def decode(self, h: torch.Tensor, noise: torch.Tensor, lengths: torch.Tensor | None = None) -> torch.Tensor:
+        """Music codes ``h [B, T, 2 * gru_hidden]`` (from ``self.music``) + noise -> poses ``[B, T, 25, 2]``; with
+        kinematic output, bones of ``lengths`` (``[B, 1, 25]``, default the training data's mean body)."""
         z = torch.tanh(self.noise_gru(noise)[0])
         x = self.blocks(self.inp(frame_context(torch.cat([h, z], dim=-1), self.head_kernel)))
         b, t, _ = h.shape
-        return self.out(self.dropout(x)).view(b, t, NUM_JOINTS, 2)
+        out = self.out(self.dropout(x)).view(b, t, NUM_JOINTS, 2)
+        return out if self.kinematics is None else self.kinematics(out, lengths)
 
 
 def frame_context(x: torch.Tensor, k: int) -> torch.Tensor:
@@ -455,7 +466,9 @@ class RenMethod(Stage1Method):
         k, (b, t) = cfg.variety_samples, real.shape[:2]
         # The music is encoded once; the K noise draws share it as one batch of K x B clips.
         codes = self.generator.music(audio).repeat(k, 1, 1)
-        fakes = self.generator.decode(codes, self.sample_noise(k * b, t, real.device))
+        kinematics = self.generator.kinematics
+        lengths = None if kinematics is None else kinematics.observe(real).repeat(k, 1, 1)
+        fakes = self.generator.decode(codes, self.sample_noise(k * b, t, real.device), lengths)
         fake, l1 = best_of(fakes.view(k, b, t, NUM_JOINTS, 2), real)
         logs: dict[str, float] = {}
 
@@ -490,6 +503,10 @@ class RenMethod(Stage1Method):
                 velocity = F.l1_loss(fake.diff(dim=1), real.diff(dim=1))
                 loss = loss + cfg.w_velocity * velocity
                 logs["velocity"] = velocity.item()
+            if cfg.speed_weight > 0:
+                speed = speed_loss(fake, real)
+                loss = loss + cfg.speed_weight * speed
+                logs["speed"] = speed.item()
             if self.d_local is not None:
                 adv_local = bce_with_constant_target(self.d_local(fake), 1.0)
                 loss = loss + cfg.w_local * adv_local

@@ -3,6 +3,15 @@ from collections.abc import Callable
 import pytest
 import torch
 
+from stage1_pose.models.kinematics import bone_vectors, forward_kinematics, joint_lengths
+
+
+@pytest.fixture
+def rigid() -> Callable[[torch.Tensor], torch.Tensor]:
+    """``rigid(poses)``: ``[..., T, 25, 2]`` poses with every frame's bones at the first frame's lengths, directions
+    kept: a dance a kinematic output layer (the `small` presets') can reproduce exactly, like the built-in dances."""
+    return lambda poses: forward_kinematics(bone_vectors(poses), joint_lengths(poses[..., :1, :, :]))
+
 
 @pytest.fixture
 def mirrored_move() -> torch.Tensor:

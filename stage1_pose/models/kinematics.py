@@ -1,0 +1,109 @@
+"""An output layer whose bones cannot change length: poses placed by forward kinematics along the BODY_25 tree.
+
+Poses are in model coordinates (:func:`dancesynth.core.skeleton.normalize`): MidHip's row is its position, every
+other joint's row its position relative to MidHip. A method with ``kinematic_output`` predicts per frame a raw
+``[25, 2]`` array shaped like a pose: row ``ROOT`` is MidHip's position, every other row ``j`` is the direction (any
+length) of the bone that ends at joint ``j``, from its parent in :data:`~dancesynth.core.skeleton.BODY25_TREE`.
+:class:`KinematicOutput` normalises each direction and places every joint at its parent plus direction x that bone's
+length, so a dance keeps one body whatever the network does. Lengths are per joint, ``[..., 25]`` in model
+coordinates (torso lengths; the root's entry is unused): in training the real clip's own (its median body), at
+generation the training data's mean body, which the layer keeps as a buffer updated while training (saved with the
+weights).
+"""
+
+from __future__ import annotations
+
+import torch
+import torch.distributed as dist
+import torch.nn.functional as F
+from torch import nn
+
+from dancesynth.core.skeleton import BODY25_TREE, NUM_JOINTS, ROOT
+
+# A direction shorter than this (model units) is too close to zero to trust; it is lengthened before normalising.
+_MIN_NORM = 1e-4
+
+
+def _tables() -> tuple[torch.Tensor, torch.Tensor]:
+    """``parent [25]`` (the root its own parent) and ``ancestry [25, 25]``: ``ancestry[j, k] = 1`` where the bone
+    ending at ``k`` lies on the path from the root to ``j`` (and ``ancestry[ROOT, ROOT] = 1``: its position)."""
+    parent = torch.arange(NUM_JOINTS)
+    ancestry = torch.zeros(NUM_JOINTS, NUM_JOINTS)
+    ancestry[ROOT, ROOT] = 1.0
+    for _, up, child in BODY25_TREE:
+        parent[child] = up
+        if up != ROOT:
+            ancestry[child] = ancestry[up]
+        ancestry[child, child] = 1.0
+    return parent, ancestry
+
+
+PARENT, ANCESTRY = _tables()
+
+
+def bone_vectors(poses: torch.Tensor) -> torch.Tensor:
+    """The raw form of ``[..., 25, 2]`` model-coordinate poses: the root's position, and for every other joint its
+    position minus its parent's. ``forward_kinematics(bone_vectors(p), joint_lengths(p)) == p``."""
+    relative = poses.index_fill(-2, torch.tensor([ROOT], device=poses.device), 0.0)
+    raw = relative - relative[..., PARENT.to(poses.device), :]
+    return torch.cat([raw[..., :ROOT, :], poses[..., ROOT:ROOT + 1, :], raw[..., ROOT + 1:, :]], dim=-2)
+
+
+def joint_lengths(poses: torch.Tensor) -> torch.Tensor:
+    """``[..., 25]`` length of the bone ending at each joint of ``[..., 25, 2]`` positions (0 for the root)."""
+    return bone_vectors(poses).norm(dim=-1).index_fill(-1, torch.tensor([ROOT], device=poses.device), 0.0)
+
+
+def forward_kinematics(raw: torch.Tensor, lengths: torch.Tensor) -> torch.Tensor:
+    """``[..., 25, 2]`` raw rows (root position + bone directions) and ``[..., 25]`` lengths (broadcast over the
+    leading dimensions) -> ``[..., 25, 2]`` model-coordinate poses whose bone ending at joint ``j`` is
+    ``lengths[j]`` long."""
+    norm = raw.norm(dim=-1, keepdim=True).clamp_min(_MIN_NORM)
+    placed = raw / norm * lengths[..., None]
+    placed = torch.cat([placed[..., :ROOT, :], raw[..., ROOT:ROOT + 1, :], placed[..., ROOT + 1:, :]], dim=-2)
+    return torch.einsum("jk,...kc->...jc", ANCESTRY.to(raw), placed)
+
+
+def joint_speeds(poses: torch.Tensor) -> torch.Tensor:
+    """``[B, T, 25, 2]`` -> ``[B, T - 1, 25]`` each joint's distance moved per frame (model units), with a gradient
+    also where a joint stands still (the numpy measure of dances is :func:`dancesynth.core.motion.joint_speeds`)."""
+    return (poses.diff(dim=1).pow(2).sum(-1) + 1e-8).sqrt()
+
+
+def speed_loss(fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
+    """L1 between the joint speeds of ``[B, T, 25, 2]`` generated and real poses: how fast each joint moves, not
+    where to (an L1 on the motion vectors themselves pulls an uncertain model towards standing still)."""
+    return F.l1_loss(joint_speeds(fake), joint_speeds(real))
+
+
+class KinematicOutput(nn.Module):
+    """Forward kinematics with the training data's mean body for generation (see the module docstring).
+
+    Buffers ``body [25]`` (mean of the clip bodies seen in training, joint-indexed lengths) and ``seen`` (how many
+    batches that mean holds).
+    """
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.register_buffer("body", torch.ones(NUM_JOINTS))
+        self.register_buffer("seen", torch.zeros(()))
+
+    def observe(self, poses: torch.Tensor) -> torch.Tensor:
+        """``[B, T, 25, 2]`` real training poses -> ``[B, 1, 25]`` each clip's body (median over frames of its
+        bone lengths), folded into ``body``'s running mean when the module is training."""
+        lengths = joint_lengths(poses).median(dim=1, keepdim=True).values
+        if self.training:
+            with torch.no_grad():
+                mean = lengths.mean(dim=(0, 1))
+                if dist.is_available() and dist.is_initialized():
+                    # Every process holds an equal share of the global batch: the mean of means is its mean.
+                    dist.all_reduce(mean)
+                    mean /= dist.get_world_size()
+                self.seen += 1
+                self.body += (mean - self.body) / self.seen
+        return lengths
+
+    def forward(self, raw: torch.Tensor, lengths: torch.Tensor | None = None) -> torch.Tensor:
+        """``[..., 25, 2]`` raw rows -> positions with ``lengths`` (``[..., 25]``, broadcastable; default the mean
+        body)."""
+        return forward_kinematics(raw, self.body if lengths is None else lengths)
