@@ -412,6 +412,10 @@ class DanceRevolution(Stage1Method):
         pred = self.decoder(z, state, target, predicted_inputs(frames, self.p, self.config.q), extras, lengths)
         l1 = F.l1_loss(pred, target)
         loss, scalars = l1, {"l1": l1.item(), "p": float(self.p)}
+        if kinematics is not None:
+            penalty = kinematics.take_penalty()
+            loss = loss + penalty
+            scalars["bone_rows"] = penalty.item()
         if kl is not None:
             loss = loss + self.config.kl_weight * kl_with_free_bits(kl, self.config.free_bits)
             scalars["kl"] = kl.mean().item()

@@ -443,7 +443,10 @@ class Dancing2MusicMethod(Stage1Method):
         else:
             mov_shifted = self.e_mov(shift_root(u, self.random_shift(units.shape[0], units.device)).flatten(2))
         shift = F.l1_loss(self.g_uni(z_ini, reparameterize(*mov_shifted), anchor), flat)
-        return {"recon": recon, "kl": kl, "shift": shift, "total": recon + c.w_kl * kl + c.w_shift * shift}
+        total = recon + c.w_kl * kl + c.w_shift * shift
+        if self.g_uni.kinematics is not None:
+            total = total + self.g_uni.kinematics.take_penalty()
+        return {"recon": recon, "kl": kl, "shift": shift, "total": total}
 
     def _decomposition_step(self, batch: Batch) -> dict[str, float]:
         logits, _ = self.style(batch.features)

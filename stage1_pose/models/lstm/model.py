@@ -86,6 +86,10 @@ class LSTMBaseline(Stage1Method):
         pred = self(batch.features, lengths)
         l1 = F.l1_loss(pred, batch.poses)
         loss, logs = l1, {"l1": l1.item()}
+        if self.kinematics is not None:
+            penalty = self.kinematics.take_penalty()
+            loss = loss + penalty
+            logs["bone_rows"] = penalty.item()
         if self.config.speed_weight:
             speed = speed_loss(pred, batch.poses)
             loss = loss + self.config.speed_weight * speed

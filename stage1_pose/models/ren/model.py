@@ -471,6 +471,7 @@ class RenMethod(Stage1Method):
         fakes = self.generator.decode(codes, self.sample_noise(k * b, t, real.device), lengths)
         fake, l1 = best_of(fakes.view(k, b, t, NUM_JOINTS, 2), real)
         logs: dict[str, float] = {}
+        bone_rows = fakes.new_zeros(()) if kinematics is None else kinematics.take_penalty()
 
         if self.d_local is not None:
             loss = 0.5 * (bce_with_constant_target(self.d_local(real), 1.0)
@@ -499,6 +500,9 @@ class RenMethod(Stage1Method):
         with frozen(*discriminators):
             loss = cfg.w_l1 * l1
             logs["l1"] = l1.item()
+            if kinematics is not None:
+                loss = loss + bone_rows
+                logs["bone_rows"] = bone_rows.item()
             if cfg.w_velocity > 0:
                 velocity = F.l1_loss(fake.diff(dim=1), real.diff(dim=1))
                 loss = loss + cfg.w_velocity * velocity
