@@ -31,7 +31,7 @@ from stage1_pose.beats import beat_times
 from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.generate import generate_dance, load_pose_model
 from stage1_pose.metrics import beat_hit_rate
-from stage1_pose.models.dancing2music.model import absolute_positions
+from stage1_pose.models.kinematics import absolute_positions
 
 
 def frame_jumps(seq: PoseSequence) -> np.ndarray:

@@ -15,6 +15,7 @@ training the layer also charges each raw row's distance from its bone's length (
 
 from __future__ import annotations
 
+import numpy as np
 import torch
 import torch.distributed as dist
 import torch.nn.functional as F
@@ -66,15 +67,25 @@ def forward_kinematics(raw: torch.Tensor, lengths: torch.Tensor) -> torch.Tensor
     return torch.einsum("jk,...kc->...jc", ANCESTRY.to(raw), placed)
 
 
+def absolute_positions(poses: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
+    """``[..., 25, 2]`` model coordinates (array or tensor) -> every joint's position relative to the canvas
+    centre (model units)."""
+    out = poses + poses[..., ROOT:ROOT + 1, :]
+    out[..., ROOT, :] = poses[..., ROOT, :]
+    return out
+
+
 def joint_speeds(poses: torch.Tensor) -> torch.Tensor:
-    """``[B, T, 25, 2]`` -> ``[B, T - 1, 25]`` each joint's distance moved per frame (model units), with a gradient
-    also where a joint stands still (the numpy measure of dances is :func:`dancesynth.core.motion.joint_speeds`)."""
-    return (poses.diff(dim=1).pow(2).sum(-1) + 1e-8).sqrt()
+    """``[B, T, 25, 2]`` model coordinates -> ``[B, T - 1, 25]`` each joint's distance moved per frame on the canvas
+    (model units: the root's motion counts for every joint, as in the measure of dances,
+    :func:`dancesynth.core.motion.joint_speeds`), with a gradient also where a joint stands still."""
+    return (absolute_positions(poses).diff(dim=1).pow(2).sum(-1) + 1e-8).sqrt()
 
 
 def speed_loss(fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
     """L1 between the joint speeds of ``[B, T, 25, 2]`` generated and real poses: how fast each joint moves, not
-    where to (an L1 on the motion vectors themselves pulls an uncertain model towards standing still)."""
+    where to (an L1 on the motion vectors themselves pulls an uncertain model towards standing still). Speeds on the
+    canvas, so a root that jitters is charged in every joint, not only in its own row of the pose loss."""
     return F.l1_loss(joint_speeds(fake), joint_speeds(real))
 
 

@@ -20,7 +20,7 @@ from stage1_pose.models.dancing2music.model import (
 
 # Free joint positions: these tests follow the paper's units (the small preset's kinematic output has its own tests).
 TINY = replace(DANCING2MUSIC_PRESETS["small"], gru_hidden=32, mlp_hidden=32, z_mov=8, z_dan=8, noise_dim=4,
-               lr=3e-3, epochs=2, decomp_epochs=1, kinematic_output=False, epoch_windows=0)
+               lr=3e-3, epochs=2, decomp_epochs=1, kinematic_output=False, epoch_windows=0, speed_weight=0.0)
 
 
 @pytest.fixture(autouse=True, scope="module")
