@@ -89,6 +89,14 @@ def speed_loss(fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
     return F.l1_loss(joint_speeds(fake), joint_speeds(real))
 
 
+def acceleration_loss(fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
+    """L1 between the magnitudes of each joint's frame-to-frame change of velocity on the canvas, ``[B, T, 25, 2]``
+    generated vs real: charges jitter (a shaking root shakes every joint) without asking for a direction."""
+    def magnitude(poses: torch.Tensor) -> torch.Tensor:
+        return (absolute_positions(poses).diff(n=2, dim=1).pow(2).sum(-1) + 1e-8).sqrt()
+    return F.l1_loss(magnitude(fake), magnitude(real))
+
+
 class KinematicOutput(nn.Module):
     """Forward kinematics with the training data's mean body for generation (see the module docstring).
 

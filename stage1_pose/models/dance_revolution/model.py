@@ -46,7 +46,7 @@ from stage1_pose.models.dance_revolution.segment_latent import (
     kl_with_free_bits,
     prior_codes,
 )
-from stage1_pose.models.kinematics import KinematicOutput, speed_loss
+from stage1_pose.models.kinematics import KinematicOutput, acceleration_loss, speed_loss
 
 POSE_DIM = NUM_JOINTS * 2
 SCHEDULES = ("const", "linear", "quadratic", "exponential")
@@ -73,6 +73,7 @@ class DanceRevolutionConfig:
     (neither is in the paper). ``kinematic_output`` places the output by forward kinematics with the training
     data's body; ``epoch_windows`` > 0 makes an epoch that many training windows whatever the dataset's size
     (0: one pass), so the curriculum, which counts epochs, and the number of steps do not shrink with the data.
+    ``accel_weight`` adds an L1 loss on each joint's acceleration magnitude (jitter; not in the paper).
     """
 
     feature_dim: int = 438
@@ -104,6 +105,7 @@ class DanceRevolutionConfig:
     z_smoothing: float = 0.0
     kinematic_output: bool = False
     epoch_windows: int = 0
+    accel_weight: float = 0.0
 
     def __post_init__(self) -> None:
         if self.curriculum not in SCHEDULES:
@@ -423,6 +425,10 @@ class DanceRevolution(Stage1Method):
             speed = speed_loss(pred.unflatten(2, (NUM_JOINTS, 2)), batch.poses)
             loss = loss + self.config.speed_weight * speed
             scalars["speed"] = speed.item()
+        if self.config.accel_weight:
+            accel = acceleration_loss(pred.unflatten(2, (NUM_JOINTS, 2)), batch.poses)
+            loss = loss + self.config.accel_weight * accel
+            scalars["accel"] = accel.item()
         self.optimize("main", loss)
         return scalars
 
