@@ -22,6 +22,6 @@ done
   --minutes 5 --preview-every 0
 rm -rf "$REPORT.new"
 "$DANCESYNTH" evaluate --data "$DS" --models "$RUNS/dance_revolution" "$RUNS/dancing2music" "$RUNS/ren" "$RUNS/lstm" \
-  --out "$REPORT.new" --trials 3 --seconds 60 --device cpu
+  --out "$REPORT.new" --trials 3 --seconds 60 --device cpu --grid-video
 [ -f "$REPORT/README.md" ] && cp "$REPORT/README.md" "$REPORT.new/"
 rm -rf "$REPORT" && mv "$REPORT.new" "$REPORT"

@@ -10,10 +10,12 @@ from dancesynth.core.skeleton import ROOT  # noqa: E402
 from stage1_pose.models.base import Batch  # noqa: E402
 from stage1_pose.models.kinematics import (  # noqa: E402
     KinematicOutput,
+    acceleration_loss,
     bone_vectors,
     forward_kinematics,
     joint_lengths,
     joint_speeds,
+    speed_loss,
 )
 from stage1_pose.models.lstm.model import LSTMBaseline, LSTMConfig  # noqa: E402
 from stage1_pose.registry import build_method, make_config  # noqa: E402
@@ -91,3 +93,15 @@ def test_joint_speeds_are_distances_per_frame_with_a_gradient_at_rest():
     torch.testing.assert_close(speeds[0, :, 1], torch.tensor([5.0, 0.0]), atol=1e-3, rtol=0)
     speeds.sum().backward()
     assert torch.isfinite(poses.grad).all()
+
+
+def test_speed_and_acceleration_losses_see_a_shaking_root_in_every_joint():
+    t = torch.linspace(0, 6.28, 30)[:, None, None]
+    calm = (0.3 * torch.sin(t + torch.arange(50.0).view(25, 2)))[None]
+    shaking = calm.clone()
+    shaking[:, :, ROOT, 0] += 0.05 * (-1.0) ** torch.arange(30.0)
+    assert float(speed_loss(calm, calm)) == 0.0 and float(acceleration_loss(calm, calm)) == 0.0
+    # Only the root's row changed, yet on the canvas every joint shakes with it.
+    per_joint = (joint_speeds(shaking) - joint_speeds(calm)).abs().mean(dim=(0, 1))
+    assert bool((per_joint > 0.02).all())
+    assert float(acceleration_loss(shaking, calm)) > 2 * float(speed_loss(shaking, calm)) > 0
