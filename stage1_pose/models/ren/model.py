@@ -135,7 +135,7 @@ _PAPER = RenConfig()
 _SMALL = RenConfig(window_frames=45, audio_channels=(8, 16, 32, 32), code_dim=64, gru_hidden=64,
                    mlp_hidden=128, mlp_blocks=2, dropout=0.1, d_channels=16, d_embed=64, attention_dim=16,
                    batch_size=8, epochs=10, noise_std=1.0, noise_frames=45, variety_samples=4, w_l1=50.0,
-                   epoch_windows=1872, kinematic_output=True, speed_weight=250.0)
+                   epoch_windows=1872, kinematic_output=True, speed_weight=50.0)
 
 # "small" / "paper" are the full model; "<row>-small" / "<row>-paper" the ablation rows.
 REN_PRESETS: dict[str, RenConfig] = {"small": _SMALL, "paper": _PAPER}
