@@ -134,7 +134,7 @@ DANCE_REVOLUTION_PRESETS: dict[str, DanceRevolutionConfig] = {
                                    lstm_hidden=128, lam=1.0, lr=1e-3, batch_size=16, window_frames=450, epochs=60,
                                    code_dim=8, code_on_beats=True, kl_weight=0.002, free_bits=0.25,
                                    speed_weight=5.0, beat_phase_input=True, z_smoothing=4.0,
-                                   kinematic_output=True, epoch_windows=144),
+                                   kinematic_output=True, epoch_windows=144, accel_weight=10.0),
 }
 
 
