@@ -9,7 +9,7 @@ import soundfile
 import dancesynth
 from dancesynth.core.skeleton import PoseSequence
 
-TINY_LSTM = dict(hidden=16, layers=1, dropout=0.0, window_frames=30, batch_size=4)
+TINY_LSTM = dict(hidden=16, layers=1, dropout=0.0, window_frames=30, batch_size=4, epoch_windows=0)
 SR = 22050
 
 

@@ -428,7 +428,7 @@ def runs(inputs, tiny_stage1_dataset) -> dict[str, str]:
     lstm, p2p = folder / "lstm", folder / "p2p"
     assert main(["train-pose", "--method", "lstm", "--data", str(tiny_stage1_dataset), "--out", str(lstm), "-q",
                  "--epochs", "1", "--preview-every", "0", "--device", "cpu", "--set", "hidden=8", "--set",
-                 "window_frames=30"]) == 0
+                 "window_frames=30", "--set", "epoch_windows=0"]) == 0
     kp = np.ones((20, 25, 3), np.float32)
     kp[..., :2] = np.random.default_rng(0).uniform(12, 52, (25, 2)) + np.arange(20)[:, None, None] * 0.3
     target = PoseSequence(kp, 15.0, 64, 64)

@@ -10,7 +10,7 @@ from apps.cli import main
 from stage1_pose.train import TrainerConfig, train
 
 TINY_DR = dict(d_model=16, heads=2, d_k=8, d_v=8, d_ff=32, layers=1, window=6, lstm_hidden=32, window_frames=30,
-               batch_size=4)
+               batch_size=4, epoch_windows=0)
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ from stage1_pose.train import train  # noqa: E402
 from stage2_video.synthetic_person import appearance_preset, write_person_video  # noqa: E402
 from stage2_video.train import TrainOptions, train_video  # noqa: E402
 
-TINY_LSTM = dict(hidden=16, layers=1, dropout=0.0, window_frames=30, batch_size=4)
+TINY_LSTM = dict(hidden=16, layers=1, dropout=0.0, window_frames=30, batch_size=4, epoch_windows=0)
 TINY_VIDEO = {"width": 32, "height": 32, "ngf": 8, "n_downsample": 2, "n_blocks": 1, "ndf": 8, "batch_size": 4}
 SR = 22050
 

@@ -27,7 +27,7 @@ def test_evaluate_a_tiny_lstm_end_to_end(tmp_path, capsys):
     assert "accuracy on the test split's real dances" in capsys.readouterr().err
     assert main(["train-pose", "--method", "lstm", "--data", str(data), "--out", str(run), "--preset", "small",
                  "--epochs", "1", "--batch-size", "2", "--window", "30", "--preview-every", "0",
-                 "--device", "cpu"]) == 0
+                 "--set", "epoch_windows=0", "--device", "cpu"]) == 0
     assert main(["evaluate", "--data", str(data), "--models", str(run), "--out", str(out), "--classifier", str(clf),
                  "--trials", "2", "--seconds", "6", "--video-seconds", "1", "--device", "cpu", "--grid-video"]) == 0
     printed = capsys.readouterr().err

@@ -17,7 +17,7 @@ from stage1_pose.registry import make_config  # noqa: E402
 def test_train_pose_then_generate(tiny_stage1_dataset, tmp_path, capsys):
     run, config = tmp_path / "run", tmp_path / "lstm.toml"
     config.write_text("hidden = 16\nlayers = 1\nwindow_frames = 30\n")
-    sets = ["--config", str(config), "--set", "hidden=8", "--set", "batch_size=4"]
+    sets = ["--config", str(config), "--set", "hidden=8", "--set", "batch_size=4", "--set", "epoch_windows=0"]
     assert main(["train-pose", "--method", "lstm", "--data", str(tiny_stage1_dataset), "--out", str(run),
                  "--epochs", "1", "--preview-every", "0", "--device", "cpu", *sets]) == 0
     assert "epoch 1/1" in capsys.readouterr().err

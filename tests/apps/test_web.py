@@ -34,7 +34,7 @@ from stage2_video.synthetic_person import appearance_preset, write_person_video 
 from stage2_video.train import TrainOptions, train_video  # noqa: E402
 
 CHROMIUM = "/usr/bin/chromium"
-TINY_LSTM = dict(hidden=16, layers=1, dropout=0.0, window_frames=30, batch_size=4)
+TINY_LSTM = dict(hidden=16, layers=1, dropout=0.0, window_frames=30, batch_size=4, epoch_windows=0)
 TINY_VIDEO = {"width": 32, "height": 32, "ngf": 8, "n_downsample": 2, "n_blocks": 1, "ndf": 8, "batch_size": 4}
 MAX_UPLOAD_MB, MAX_SONG_MINUTES = 2.0, 0.75
 POSE_RUN = "mine/lstm"

@@ -41,7 +41,7 @@ def test_run_folder_outputs(tiny_stage1_dataset, tmp_path):
     assert meta["epoch"] == 2 and meta["curriculum"]["p"] == 1 and meta["feature_kind"] == "dance_revolution"
     assert len(meta["feature_stats"]["mean"]) == 438 and meta["canvas"] == [1280, 720] and meta["fps"] == 15.0
     rows = (run / "metrics.csv").read_text().splitlines()
-    assert rows[0] == "epoch,step,seconds,bone_rows,kl,l1,p,speed" and len(rows) == 3
+    assert rows[0] == "epoch,step,seconds,accel,bone_rows,kl,l1,p,speed" and len(rows) == 3
     assert (run / "loss.png").stat().st_size > 0 and (run / "previews" / "epoch_0002.mp4").stat().st_size > 0
     with pytest.raises(DancesynthError, match="already holds"):
         train("dance_revolution", tiny_stage1_dataset, run, overrides=TINY_DR, epochs=2)
