@@ -55,7 +55,7 @@ def test_metrics_columns_of_a_later_training_phase_are_labelled(tiny_stage1_data
     """Dancing2Music logs other losses in its composition phase: metrics.csv grows the columns, never shifts them."""
     import csv
 
-    tiny = dict(gru_hidden=16, mlp_hidden=16, z_mov=4, z_dan=4, noise_dim=2, epochs=2, decomp_epochs=1,
+    tiny = dict(gru_hidden=16, mlp_hidden=16, z_mov=4, z_dan=4, noise_dim=2, epochs=2, decomp_epochs=1, epoch_windows=0,
                 batch_size=4, window_frames=60)
     # Previews are due every epoch but the gap since the start is never reached: none is drawn.
     train("dancing2music", tiny_stage1_dataset, tmp_path / "run", overrides=tiny,
