@@ -228,9 +228,9 @@ def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[He
     return Contender(Path(run_dir).name, make)
 
 
-def score_dance(dance: PoseSequence, song: HeldOutSong, clf: LoadedStyleClassifier) -> DanceScores:
-    """Classifier embedding, both kinematic beat sets (frame indices) and the motion measures of one dance to
-    ``song``; bone lengths are compared with the dance's own median lengths (a body that keeps its proportions)."""
+def score_dance(dance: PoseSequence, clf: LoadedStyleClassifier) -> DanceScores:
+    """Classifier embedding, both kinematic beat sets (frame indices) and the motion measures of one dance; bone
+    lengths are compared with the dance's own median lengths (a body that keeps its proportions)."""
     pred, feat, windows = clf.embed(dance)
     xy = dance.xy
     return DanceScores(pred, feat, windows, np.asarray(kinematic_beats(xy, dance.fps)),
@@ -291,7 +291,7 @@ def evaluate_contender(contender: Contender, songs: list[HeldOutSong], ref: Refe
             dance = contender.make(i, seed)
             if on_dance is not None:
                 on_dance(contender.name, i, seed, dance)
-            scores.append(score_dance(dance, songs[i], clf))
+            scores.append(score_dance(dance, clf))
             bar.update()
         all_scores.append(scores)
         for k, v in trial_metrics(scores, songs, ref, songs[0].real.fps, tolerance_frames).items():

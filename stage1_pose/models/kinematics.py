@@ -75,11 +75,17 @@ def absolute_positions(poses: np.ndarray | torch.Tensor) -> np.ndarray | torch.T
     return out
 
 
+def _change_magnitudes(poses: torch.Tensor, order: int) -> torch.Tensor:
+    """``[B, T, 25, 2]`` model coordinates -> ``[B, T - order, 25]`` length of each joint's ``order``-th frame
+    difference on the canvas, with a gradient also where it is zero."""
+    return (absolute_positions(poses).diff(n=order, dim=1).pow(2).sum(-1) + 1e-8).sqrt()
+
+
 def joint_speeds(poses: torch.Tensor) -> torch.Tensor:
     """``[B, T, 25, 2]`` model coordinates -> ``[B, T - 1, 25]`` each joint's distance moved per frame on the canvas
     (model units: the root's motion counts for every joint, as in the measure of dances,
     :func:`dancesynth.core.motion.joint_speeds`), with a gradient also where a joint stands still."""
-    return (absolute_positions(poses).diff(dim=1).pow(2).sum(-1) + 1e-8).sqrt()
+    return _change_magnitudes(poses, 1)
 
 
 def speed_loss(fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
@@ -92,9 +98,7 @@ def speed_loss(fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
 def acceleration_loss(fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
     """L1 between the magnitudes of each joint's frame-to-frame change of velocity on the canvas, ``[B, T, 25, 2]``
     generated vs real: charges jitter (a shaking root shakes every joint) without asking for a direction."""
-    def magnitude(poses: torch.Tensor) -> torch.Tensor:
-        return (absolute_positions(poses).diff(n=2, dim=1).pow(2).sum(-1) + 1e-8).sqrt()
-    return F.l1_loss(magnitude(fake), magnitude(real))
+    return F.l1_loss(_change_magnitudes(fake, 2), _change_magnitudes(real, 2))
 
 
 class KinematicOutput(nn.Module):
