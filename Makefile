@@ -29,8 +29,9 @@ demo: $(STAMP)
 lint: $(STAMP)
 	$(VENV)/bin/ruff check .
 
+# One single-threaded test process per core: the suite's tests are independent and mostly single-threaded.
 test: lint browser
-	OMP_NUM_THREADS=1 $(PY) -m pytest -q
+	OMP_NUM_THREADS=1 $(PY) -m pytest -q -n auto
 
 clean:
 	rm -rf $(VENV) demo_output
