@@ -20,6 +20,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -202,8 +203,9 @@ def baseline_contenders(songs: list[HeldOutSong], ref: Reference) -> list[Conten
             Contender(RANDOM_REAL, random_real), Contender(FROZEN, frozen, stochastic=False)]
 
 
-def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[HeldOutSong], device: str) -> Contender:
-    """A row generating with the stage-1 model saved in ``run_dir``.
+def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[HeldOutSong], device: str,
+                    name: str) -> Contender:
+    """The row ``name`` (see :func:`row_names`), generating with the stage-1 model saved in ``run_dir``.
 
     When the model runs at the dataset's frame rate, its input features come from the dataset's feature cache
     (computed once per song, cut to the song's frames) instead of being extracted again for every seed, with
@@ -225,7 +227,26 @@ def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[He
             dance = resample(generate_dance(model, song.samples, song.sr, seed=seed), song.real.fps)
         return fit_length(dance, len(song.real))
 
-    return Contender(Path(run_dir).name, make)
+    return Contender(name, make)
+
+
+def row_names(model_dirs: list[str], taken: set[str]) -> list[str]:
+    """Row names of the model folders, unique among themselves and ``taken`` (as file names too, since each row
+    writes ``videos/<row>.mp4``): the folder's name; where rows share one, ``parent/name``; a number after that
+    when even that repeats (one folder given twice)."""
+    plain = [Path(d).name for d in model_dirs]
+    shared = Counter(_file_name(n) for n in [*taken, *plain])
+    used = {_file_name(n) for n in taken}
+    names = []
+    for run_dir, name in zip(model_dirs, plain):
+        if shared[_file_name(name)] > 1:
+            name = f"{Path(run_dir).resolve().parent.name}/{name}"
+        unique, k = name, 2
+        while _file_name(unique) in used:
+            unique, k = f"{name} ({k})", k + 1
+        used.add(_file_name(unique))
+        names.append(unique)
+    return names
 
 
 def score_dance(dance: PoseSequence, clf: LoadedStyleClassifier) -> DanceScores:
@@ -444,7 +465,8 @@ def run_evaluation(data_dir: str | os.PathLike, model_dirs: list[str], out_dir: 
     songs = load_songs(ds, options.seconds)
     ref = load_reference(ds, clf)
     baselines = baseline_contenders(songs, ref)
-    models = [model_contender(m, ds, songs, options.device) for m in model_dirs]
+    models = [model_contender(m, ds, songs, options.device, name)
+              for m, name in zip(model_dirs, row_names(model_dirs, {c.name for c in baselines}))]
     contenders = baselines + models
     samples: dict[str, PoseSequence] = {}
 

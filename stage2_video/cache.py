@@ -21,7 +21,7 @@ from pathlib import Path
 
 from dancesynth.core.checkpoint import POINTER, has_checkpoint, load_meta, run_file_contents
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.fileio import atomic_path
+from dancesynth.core.fileio import atomic_path, require_file
 from dancesynth.core.media import probe_video
 from stage2_video.data import video_digest
 from stage2_video.train import KIND, TrainOptions, train_video
@@ -98,8 +98,7 @@ def _locked(path: Path) -> Iterator[None]:
 
 def check_target_video(video: Path) -> None:
     """Refuse a target that cannot hold enough of a person: missing, unreadable or shorter than 3 s."""
-    if not video.is_file():
-        raise DancesynthError(f"Target video {video} does not exist; check the path.")
+    require_file(video, "Target video")
     info = probe_video(video)
     if info.duration < MIN_TARGET_SECONDS:
         raise DancesynthError(f"The target video {video} lasts {info.duration:.1f} s; use one of at least "

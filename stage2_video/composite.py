@@ -256,7 +256,7 @@ def cache_plate(video: Path, poses: PoseSequence, run_dir: Path) -> np.ndarray:
 def load_plate(run_dir: str | os.PathLike) -> np.ndarray:
     """The background plate of an appearance model's run: its ``background.png``, or for a run trained before
     plates were cached, estimated now from its ``poses.npz`` and target video (when that file still exists)."""
-    from stage2_video.train import KIND  # train imports this module to cache the plate while training
+    from stage2_video.train import KIND  # not at module level: train imports cache_plate from here (a cycle)
 
     run_dir = Path(run_dir)
     if (run_dir / PLATE_FILE).is_file():

@@ -19,13 +19,13 @@ import os
 import sys
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import cv2
 import numpy as np
 
 from dancesynth.core.draw import draw_pose
 from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import require_file
 from dancesynth.core.media import VideoWriter, probe_video, read_frames
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import JOINT_INDEX, NECK, NUM_JOINTS, ROOT, PoseSequence, interpolate_missing
@@ -215,9 +215,7 @@ def extract_poses(video: str | os.PathLike, config: ExtractConfig | None = None,
         DancesynthError: the video is missing or unreadable, or the person is absent in more than
             ``config.max_missing_fraction`` of the frames.
     """
-    video = Path(video)
-    if not video.is_file():
-        raise DancesynthError(f"Video {video} does not exist; check the path.")
+    video = require_file(video, "Video")
     info = probe_video(video)
     return extract_frames(read_frames(video), info.fps, (info.width, info.height), config, progress,
                           total=info.num_frames or None, source=str(video))

@@ -32,7 +32,7 @@ from dancesynth.core.checkpoint import POINTER, run_file_contents
 from dancesynth.core.config import config_from_dict, config_to_dict
 from dancesynth.core.device import precision_name, resolve_device, resolve_precision
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.fileio import atomic_path
+from dancesynth.core.fileio import atomic_path, require_file
 from dancesynth.core.interrupts import StopRequest, deferred_interrupts
 from dancesynth.core.progress import Progress, track
 from dancesynth.core.runs import RunFolder
@@ -325,8 +325,7 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
     """
     video, run_dir = Path(video), Path(run_dir)
     options = options or TrainOptions()
-    if not video.is_file():
-        raise DancesynthError(f"Target video {video} does not exist; check the path.")
+    require_file(video, "Target video")
     if options.minutes is None and options.epochs is None:
         raise DancesynthError("Give a time budget with --minutes or a length with --epochs.")
     dev = resolve_device(device)

@@ -16,7 +16,8 @@ Metrics (mean ± std over --trials seeds): FID and ACC from a style classifier (
 coverage and hit rate with two kinematic beat definitions (Dancing2Music offsets, velocity minima),
 Bailando's Beat Align Score, diversity, multimodality, long-term FID over 4-s windows, and Ren et al.'s
 cross-modal distance. The style classifier is trained once and cached in DATA/style_classifier/PRESET unless
---classifier gives one (train it with `dancesynth train-style-classifier`).
+--classifier gives one (train it with `dancesynth train-style-classifier`). A model's row is named after its
+folder (PARENT/NAME when two folders share a name).
 
 Writes into REPORT_DIR: report.md (table), report.json (every number, per trial), fid_over_time.png,
 beat_alignment.png and videos/<row>.mp4 (skeleton previews with the song); with --grid-video also grid.mp4:

@@ -116,6 +116,7 @@ class WebApp:
         self.max_upload_mb = max_upload_mb
         self.max_song_minutes = max_song_minutes
         self.keep_uploads_hours = keep_uploads_hours
+        self.demo = demo
         # A worker resolves the default cache itself; the demo's sizes go as a dict (None: DemoPlan()).
         self.jobs = JobStore(self.data, {"data": str(self.data), "cache": self._cache and str(self._cache),
                                          "device": device, "demo": demo and dataclasses.asdict(demo)})
@@ -335,6 +336,16 @@ class WebApp:
     def _device_flag(self) -> list[str]:
         return [] if self.device == "auto" else ["--device", self.device]
 
+    def _demo_command(self, minutes: float) -> str:
+        """The command running what a demo job runs: `dancesynth demo`, or with a plan other than the default
+        (which `dancesynth demo` has no options for) the Python call the job makes."""
+        folder = str(self.data / "demo")
+        if self.demo is None or self.demo == type(self.demo)():  # not DemoPlan(): apps.demo imports torch
+            return shlex.join(["dancesynth", "demo", "--out", folder, "--minutes", f"{minutes:g}",
+                               *self._device_flag()])
+        call = f"run_demo({folder!r}, minutes={minutes!r}, device={self.device!r}, plan={self.demo!r})"
+        return shlex.join(["python", "-c", f"from apps.demo import DemoPlan, run_demo; {call}"])
+
     def create_job(self, body: dict) -> dict:
         """Check a job request (one sentence for what is wrong) and queue it."""
         kind = body.get("kind")
@@ -345,10 +356,8 @@ class WebApp:
                 return self._train_job(body) if kind == "train" else self._preview_job(body)
             if kind == "demo":
                 minutes = _number(body, "minutes", 15.0, 1.01, 24 * 60, "demo's time budget (minutes)")
-                folder = self.data / "demo"
-                command = shlex.join(["dancesynth", "demo", "--out", str(folder), "--minutes", f"{minutes:g}",
-                                      *self._device_flag()])
-                return self.jobs.create("demo", f"demo, {minutes:g} min", {"minutes": minutes}, command)
+                return self.jobs.create("demo", f"demo, {minutes:g} min", {"minutes": minutes},
+                                        self._demo_command(minutes))
         raise DancesynthError(f"Unknown job kind {kind!r}; choose dance, train, preview or demo.")
 
     def _dance_job(self, body: dict) -> dict:

@@ -13,10 +13,10 @@ import os
 import tomllib
 import types
 import typing
-from pathlib import Path
 from typing import Any, TypeVar
 
 from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import require_file
 
 C = TypeVar("C")
 
@@ -147,9 +147,7 @@ def apply_overrides(cfg: C, items: list[str]) -> C:
 def load_config_file(path: str | os.PathLike) -> dict[str, Any]:
     """The settings in a TOML file (or, for a ``.json`` name, a JSON object) as a dict, for
     :func:`update_config` / :func:`config_from_dict`."""
-    path = Path(path)
-    if not path.is_file():
-        raise DancesynthError(f"Config file {path} does not exist; check the path.")
+    path = require_file(path, "Config file")
     try:
         if path.suffix.lower() == ".json":
             data = json.loads(path.read_text(encoding="utf-8"))

@@ -1,4 +1,5 @@
-"""Atomic output files: written under a unique temporary name, renamed into place only when complete."""
+"""Input files checked before use; atomic output files: written under a unique temporary name, renamed into
+place only when complete."""
 
 from __future__ import annotations
 
@@ -23,6 +24,15 @@ def temporary_sibling(path: str | os.PathLike) -> Path:
     """
     path = Path(path)
     return path.with_name(f".{path.stem}.{os.getpid()}-{secrets.token_hex(4)}{PART_MARKER}{path.suffix}")
+
+
+def require_file(path: str | os.PathLike, what: str = "") -> Path:
+    """``path`` as a Path when it is a file, else a :class:`DancesynthError` naming it (``what``: what the file
+    is, e.g. ``"Target video"``, put before the path in the sentence)."""
+    path = Path(path)
+    if not path.is_file():
+        raise DancesynthError(f"{what + ' ' if what else ''}{path} does not exist; check the path.")
+    return path
 
 
 def os_error_sentence(error: OSError, path: str | os.PathLike | None = None) -> str:

@@ -19,7 +19,7 @@ import av
 import numpy as np
 
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.fileio import atomic_path
+from dancesynth.core.fileio import atomic_path, require_file
 
 logger = logging.getLogger(__name__)
 
@@ -37,9 +37,7 @@ MAX_SAMPLE = 100.0
 
 
 def _open_input(path: str | os.PathLike) -> av.container.InputContainer:
-    path = Path(path)
-    if not path.is_file():
-        raise DancesynthError(f"{path} does not exist; check the path.")
+    path = require_file(path)
     try:
         return av.open(str(path))
     except (av.FFmpegError, UnicodeDecodeError) as e:

@@ -11,13 +11,12 @@ import math
 import os
 import zipfile
 from dataclasses import dataclass
-from pathlib import Path
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.fileio import atomic_path
+from dancesynth.core.fileio import atomic_path, require_file
 
 BODY25_JOINTS: tuple[str, ...] = (
     "Nose", "Neck", "RShoulder", "RElbow", "RWrist", "LShoulder", "LElbow", "LWrist",
@@ -134,9 +133,7 @@ class PoseSequence:
     @classmethod
     def load(cls, path: str | os.PathLike) -> "PoseSequence":
         """Read a file written by :meth:`save`."""
-        path = Path(path)
-        if not path.is_file():
-            raise DancesynthError(f"Pose file {path} does not exist; check the path.")
+        path = require_file(path, "Pose file")
         try:
             with np.load(path, allow_pickle=False) as z:
                 if str(z["layout"]) != "BODY_25":

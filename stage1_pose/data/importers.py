@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import require_file
 from dancesynth.core.skeleton import COCO17_TO_BODY25, PoseSequence, from_partial, resample
 from stage1_pose.beats import track_beats
 from stage1_pose.data.layout import (
@@ -143,9 +144,7 @@ def load_aistpp_keypoints(path: str | os.PathLike, view: int = 0) -> np.ndarray:
     Accepts ``.npy`` or ``.npz`` (key ``keypoints2d``, or its only array) holding ``[views, T, 17, 3]`` (camera
     ``view`` is taken) or ``[T, 17, 3]``. NaN points (not detected) get confidence 0.
     """
-    path = Path(path)
-    if not path.is_file():
-        raise DancesynthError(f"{path} does not exist; check the path.")
+    path = require_file(path)
     if path.suffix == ".pkl":
         raise DancesynthError(f"{path} is a pickle, which dancesynth does not open; convert it to .npy as "
                               "described in `stage1_pose.data.importers` (one line of Python) and import that.")

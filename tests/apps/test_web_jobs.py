@@ -3,6 +3,7 @@
 import io
 import json
 import os
+import shlex
 import time
 from pathlib import Path
 
@@ -10,8 +11,12 @@ import numpy as np
 import soundfile
 from fastapi import UploadFile
 
+import apps.demo
+from apps.cli import main
+from apps.demo import DemoPlan
 from apps.web.jobs import JobStore, parse_progress
 from apps.web.server import create_app
+from apps.web.tasks import demo_job
 
 
 def test_a_job_left_running_by_a_stopped_server_becomes_interrupted_and_loses_its_partial_outputs(tmp_path):
@@ -77,3 +82,28 @@ def test_old_uploads_are_removed_unless_a_queued_job_or_a_cached_model_needs_the
     saved = web.save_upload(UploadFile(song, filename="song.wav"), "song")
     assert not fresh.exists() and queued.is_dir() and trained.is_dir()
     assert sorted(p.name for p in (data / "uploads").iterdir()) == sorted([queued.name, trained.name, saved["id"]])
+
+
+def test_a_demo_jobs_command_makes_the_call_the_job_makes(tmp_path, monkeypatch):
+    """The page's "Equivalent command" of a demo job: `dancesynth demo`, or for a server whose demo plan has other
+    sizes (which `dancesynth demo` has no options for) the Python call; run, it calls run_demo as the job does."""
+    calls = []
+
+    def run_demo(out_dir, minutes=15.0, seed=0, device="auto", plan=None):
+        calls.append((str(out_dir), minutes, seed, device, plan or DemoPlan()))
+        return []
+
+    monkeypatch.setattr(apps.demo, "run_demo", run_demo)
+    toy = DemoPlan(clips=6, clip_seconds=12.0, target_seconds=4.0, preset="small")
+    for plan, program in ((None, "dancesynth"), (DemoPlan(), "dancesynth"), (toy, "python")):
+        web = create_app(tmp_path / "data", tmp_path / "cache", device="cpu", demo=plan).state.web
+        web.start_cleanup.join(60)
+        job = web.create_job({"kind": "demo", "minutes": 2.5})
+        demo_job(job["params"], tmp_path / "out", web.jobs.settings)
+        argv = shlex.split(job["command"])
+        assert argv[0] == program
+        if program == "dancesynth":
+            assert main(argv[1:]) == 0
+        else:
+            exec(argv[2], {})
+        assert calls[-1] == calls[-2] == (str(tmp_path / "data" / "demo"), 2.5, 0, "cpu", plan or DemoPlan())

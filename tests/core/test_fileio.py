@@ -1,13 +1,14 @@
 import errno
 import multiprocessing
 import os
+import re
 import threading
 
 import numpy as np
 import pytest
 
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.fileio import PART_MARKER, atomic_path, os_error_sentence, temporary_sibling
+from dancesynth.core.fileio import PART_MARKER, atomic_path, os_error_sentence, require_file, temporary_sibling
 from dancesynth.core.skeleton import PoseSequence
 
 
@@ -82,6 +83,16 @@ def test_a_folder_or_missing_folder_as_output_is_refused_before_writing(tmp_path
     with pytest.raises(DancesynthError, match="does not exist"):
         with atomic_path(tmp_path / "no" / "out.npz"):
             pytest.fail("the body must not run")
+
+
+def test_a_missing_input_file_or_a_folder_in_its_place_is_one_sentence_naming_it(tmp_path):
+    (tmp_path / "song.wav").write_bytes(b"RIFF")
+    assert require_file(str(tmp_path / "song.wav")) == tmp_path / "song.wav"
+    missing = tmp_path / "clip.mp4"
+    with pytest.raises(DancesynthError, match=re.escape(f"Target video {missing} does not exist; check the path.")):
+        require_file(missing, "Target video")
+    with pytest.raises(DancesynthError, match=re.escape(f"{tmp_path} does not exist; check the path.")):
+        require_file(tmp_path)
 
 
 def test_folder_outputs_replace_the_previous_folder_whole(tmp_path):

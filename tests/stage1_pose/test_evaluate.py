@@ -1,7 +1,9 @@
 """The evaluation driver end to end on a constructed dataset: real-dance and baseline rows, known answers,
 and the physical-plausibility columns (zero bone-length error for the built-in real dances)."""
 
+import dataclasses
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -28,6 +30,7 @@ from stage1_pose.evaluate import (
     obtain_classifier,
     run_evaluation,
 )
+from stage1_pose.train import train
 
 SR = 22050
 SECONDS = 8.0
@@ -104,6 +107,20 @@ def test_grid_video_shows_every_row_to_the_first_test_song_with_its_audio(report
     # Three rows in one row of three 426 x 240 tiles, 2 s at 15 fps, with the song.
     assert streams["video_frames"] == 30 and (info.width, info.height) == (1278, 240)
     assert streams["audio_codec"] == "aac" and abs(streams["audio_duration"] - 2.0) <= 1 / 15
+
+
+def test_model_folders_of_one_name_keep_their_own_rows_and_sample_videos(report, tmp_path):
+    data, _, _, options = report
+    first, second = tmp_path / "a" / "lstm", tmp_path / "b" / "lstm"
+    train("lstm", data, first, overrides=dict(hidden=16, layers=1, window_frames=30, batch_size=4, epoch_windows=0),
+          epochs=1, device="cpu")
+    shutil.copytree(first, second)
+    out = tmp_path / "report"
+    options = dataclasses.replace(options, trials=1, grid_video=False)
+    rows = run_evaluation(data, [str(first), str(second)], out, options)
+    assert [r.name for r in rows] == [REAL, RANDOM_REAL, FROZEN, "a/lstm", "b/lstm"]
+    assert (out / "videos" / "a_lstm.mp4").is_file() and (out / "videos" / "b_lstm.mp4").is_file()
+    assert len(list((out / "videos").glob("*.mp4"))) == 5
 
 
 def test_real_dances_are_recognised_and_closer_to_training_data_than_a_frozen_pose(report):
