@@ -107,14 +107,21 @@ def cut_units(x: np.ndarray, unit_beats: np.ndarray) -> np.ndarray:
     return np.stack([sample_frames(x, unit_positions(b)) for b in np.asarray(unit_beats)])
 
 
-def beat_grid(music_beats: np.ndarray, num_frames: int, stride: int = 1) -> np.ndarray:
+def beat_grid(music_beats: np.ndarray, num_frames: int, stride: float = 1) -> np.ndarray:
     """Frame positions of the dance beats for a song of ``num_frames`` frames: ``[K]`` increasing.
 
-    Every ``stride``-th music beat (fractional frame indices) is a dance beat, as dancers need not move on every
-    musical beat. The grid is extended before the first and after the last beat with the median beat interval
-    so it covers frames ``0 .. num_frames - 1``.
+    ``stride`` is music beats per dance beat. From 1 up, every ``round(stride)``-th music beat (fractional frame
+    indices) is a dance beat, as dancers need not move on every musical beat; below 1, every music beat interval
+    is split into ``round(1 / stride)`` equal dance beats (moving on the half beats, as dancers who move faster
+    than the music's pulse do). The grid is extended before the first and after the last beat with the median
+    dance beat interval so it covers frames ``0 .. num_frames - 1``.
     """
-    beats = np.asarray(music_beats, dtype=np.float64)[::max(1, int(stride))]
+    beats = np.asarray(music_beats, dtype=np.float64)
+    if stride >= 1:
+        beats = beats[::max(1, int(round(stride)))]
+    else:
+        parts = int(round(1 / stride))
+        beats = np.append(beats[:-1, None] + np.diff(beats)[:, None] * np.arange(parts) / parts, beats[-1])
     if len(beats) < 2:
         raise DancesynthError("The song has fewer than two beats to dance to; use a song with a steady rhythm "
                               "of at least a few seconds.")
@@ -127,15 +134,16 @@ def beat_grid(music_beats: np.ndarray, num_frames: int, stride: int = 1) -> np.n
     return np.concatenate([before, beats, after])
 
 
-def beat_stride(music_beats: np.ndarray, dance_interval: float) -> int:
-    """How many music beats one dance-beat interval spans: ``round(dance_interval / median music interval)``.
-
-    ``dance_interval`` is the typical kinematic beat interval in frames seen in training; at least 1.
-    """
+def beat_stride(music_beats: np.ndarray, dance_interval: float) -> float:
+    """Music beats per dance beat, so the dance beats come about every ``dance_interval`` frames (the typical
+    kinematic beat interval seen in training): ``round(dance_interval / music interval)`` when the dance is
+    slower than the music's pulse, ``1 / round(music interval / dance_interval)`` when it is faster (a unit, four
+    dance beats, then lasts as long as it did in training, instead of being stretched over four music beats)."""
     beats = np.asarray(music_beats, dtype=np.float64)
     if len(beats) < 2:
-        return 1
-    return max(1, int(round(dance_interval / float(np.median(np.diff(beats))))))
+        return 1.0
+    ratio = dance_interval / float(np.median(np.diff(beats)))
+    return float(max(1, round(ratio))) if ratio >= 1 else 1.0 / max(1, round(1.0 / ratio))
 
 
 def units_needed(grid: np.ndarray) -> int:

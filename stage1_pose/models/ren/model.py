@@ -26,7 +26,7 @@ from torch import nn
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import NUM_JOINTS
 from stage1_pose.models.base import Batch, Stage1Method, bce_with_constant_target
-from stage1_pose.models.kinematics import KinematicOutput, speed_loss
+from stage1_pose.models.kinematics import KinematicOutput, motion_statistics_loss, speed_loss
 from stage1_pose.models.ren.perceptual import PosePerceptualLoss
 from stage1_pose.models.ren.variety import best_of, held_noise
 
@@ -56,7 +56,11 @@ class RenConfig:
     make the generator ignore its noise, and per-frame noise can only make it shake. ``kinematic_output`` places
     the poses by forward kinematics (:mod:`stage1_pose.models.kinematics`: bones keep their length);
     ``speed_weight`` adds an L1 loss between each joint's speed and the real dance's (on the draw Eq. 7 uses);
+    ``motion_weight`` adds :func:`~stage1_pose.models.kinematics.motion_statistics_loss` on every draw (each should
+    move as much as the real dance, however it times it: the draw nearest in L1 is the stillest one);
     ``epoch_windows`` > 0 makes an epoch that many training windows whatever the dataset's size (0: one pass).
+    ``windowed_generation`` encodes a song in overlapping windows of ``window_frames`` (:func:`windowed`), the
+    length the recurrent encoders were trained on; the paper runs them over the whole test sequence.
     """
 
     samples_per_frame: int = 1024
@@ -96,6 +100,8 @@ class RenConfig:
     epoch_windows: int = 0
     kinematic_output: bool = False
     speed_weight: float = 0.0
+    motion_weight: float = 0.0
+    windowed_generation: bool = False
 
     @property
     def uses_local_d(self) -> bool:
@@ -133,9 +139,10 @@ def _ablation(config: RenConfig, row: str) -> RenConfig:
 _PAPER = RenConfig()
 # CPU-sized (10 epochs < 20 min), with held noise, best of 4 draws and L1 weight 50 so the seed chooses the dance.
 _SMALL = RenConfig(window_frames=45, audio_channels=(8, 16, 32, 32), code_dim=64, gru_hidden=64,
-                   mlp_hidden=128, mlp_blocks=2, dropout=0.1, d_channels=16, d_embed=64, attention_dim=16,
+                   mlp_hidden=128, mlp_blocks=2, dropout=0.0, d_channels=16, d_embed=64, attention_dim=16,
                    batch_size=8, epochs=10, noise_std=1.0, noise_frames=45, variety_samples=4, w_l1=50.0,
-                   epoch_windows=1872, kinematic_output=True, speed_weight=50.0)
+                   epoch_windows=1872, kinematic_output=True, motion_weight=5.0,
+                   windowed_generation=True)
 
 # "small" / "paper" are the full model; "<row>-small" / "<row>-paper" the ablation rows.
 REN_PRESETS: dict[str, RenConfig] = {"small": _SMALL, "paper": _PAPER}
@@ -232,17 +239,60 @@ class RenGenerator(nn.Module):
         self.out = nn.Linear(config.mlp_hidden, NUM_JOINTS * 2)
         self.kinematics = KinematicOutput() if config.kinematic_output else None
 
-    def forward(self, audio: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
-        return self.decode(self.music(audio), noise)
+    def forward(self, audio: torch.Tensor, noise: torch.Tensor, window: int = 0) -> torch.Tensor:
+        """``window`` > 0 runs both recurrent encoders on overlapping windows of that many frames (see
+        :func:`windowed`), the length they were trained on, instead of once over the whole song."""
+        if window <= 0:
+            return self.decode(self.music(audio), noise)
+        return self.head(windowed(lambda a, n: torch.cat([self.music(a), self.noise_code(n)], dim=-1),
+                                  (audio, noise), window))
+
+    def noise_code(self, noise: torch.Tensor) -> torch.Tensor:
+        return torch.tanh(self.noise_gru(noise)[0])
 
     def decode(self, h: torch.Tensor, noise: torch.Tensor, lengths: torch.Tensor | None = None) -> torch.Tensor:
         """Music codes ``h [B, T, 2 * gru_hidden]`` (from ``self.music``) + noise -> poses ``[B, T, 25, 2]``; with
         kinematic output, bones of ``lengths`` (``[B, 1, 25]``, default the training data's mean body)."""
-        z = torch.tanh(self.noise_gru(noise)[0])
-        x = self.blocks(self.inp(frame_context(torch.cat([h, z], dim=-1), self.head_kernel)))
-        b, t, _ = h.shape
+        return self.head(torch.cat([h, self.noise_code(noise)], dim=-1), lengths)
+
+    def head(self, codes: torch.Tensor, lengths: torch.Tensor | None = None) -> torch.Tensor:
+        """Per-frame music and noise codes ``[B, T, 2 * gru_hidden + noise_dim]`` -> poses ``[B, T, 25, 2]``."""
+        x = self.blocks(self.inp(frame_context(codes, self.head_kernel)))
+        b, t, _ = codes.shape
         out = self.out(self.dropout(x)).view(b, t, NUM_JOINTS, 2)
         return out if self.kinematics is None else self.kinematics(out, lengths)
+
+
+def windowed(encode: Callable[..., torch.Tensor], inputs: tuple[torch.Tensor, ...], window: int) -> torch.Tensor:
+    """``encode`` (``[B, t, ...]`` inputs -> ``[B, t, C]``) over windows of ``window`` frames, consecutive windows
+    sharing an eighth of a window where their codes cross-fade linearly: every frame's code comes from windows of
+    the training length (a recurrent encoder run over a whole song drifts into states it never saw, and the dance
+    slows down after the first window). A short overlap, because a blend of two windows' codes is a calmer code,
+    and none would leave a jump. Inputs of at most one window are encoded at once."""
+    frames = inputs[0].shape[1]
+    if frames <= window:
+        return encode(*inputs)
+    overlap = window // 8
+    hop = window - overlap
+    starts = [*range(0, frames - window, hop), frames - window]
+    ramp = torch.ones(window, device=inputs[0].device)
+    if overlap:
+        rise = (torch.arange(overlap, device=ramp.device) + 0.5) / overlap
+        ramp[:overlap], ramp[-overlap:] = rise, rise.flip(0)
+    total, mass = None, inputs[0].new_zeros(frames)
+    for start in starts:
+        # The song's first and last frames have no neighbouring window to fade into.
+        weight = ramp.clone()
+        if start == 0:
+            weight[:overlap] = 1.0
+        if start == frames - window:
+            weight[window - overlap:] = 1.0
+        code = encode(*(x[:, start:start + window] for x in inputs)) * weight[:, None]
+        if total is None:
+            total = code.new_zeros(code.shape[0], frames, code.shape[2])
+        total[:, start:start + window] += code
+        mass[start:start + window] += weight
+    return total / mass[:, None]
 
 
 def frame_context(x: torch.Tensor, k: int) -> torch.Tensor:
@@ -511,6 +561,10 @@ class RenMethod(Stage1Method):
                 speed = speed_loss(fake, real)
                 loss = loss + cfg.speed_weight * speed
                 logs["speed"] = speed.item()
+            if cfg.motion_weight > 0:
+                motion = motion_statistics_loss(fakes.view(k * b, t, NUM_JOINTS, 2), real.repeat(k, 1, 1, 1))
+                loss = loss + cfg.motion_weight * motion
+                logs["motion"] = motion.item()
             if self.d_local is not None:
                 adv_local = bce_with_constant_target(self.d_local(fake), 1.0)
                 loss = loss + cfg.w_local * adv_local
@@ -536,4 +590,4 @@ class RenMethod(Stage1Method):
         """``[B, T, S]`` audio -> ``[B, T, 25, 2]``; the noise (hence the dance) is drawn from ``generator``;
         ``beats`` are not used."""
         noise = self.sample_noise(features.shape[0], features.shape[1], features.device, generator)
-        return self.generator(features, noise)
+        return self.generator(features, noise, self.config.window_frames if self.config.windowed_generation else 0)

@@ -15,6 +15,7 @@ from stage1_pose.models.kinematics import (  # noqa: E402
     forward_kinematics,
     joint_lengths,
     joint_speeds,
+    motion_statistics_loss,
     speed_loss,
 )
 from stage1_pose.models.lstm.model import LSTMBaseline, LSTMConfig  # noqa: E402
@@ -105,3 +106,19 @@ def test_speed_and_acceleration_losses_see_a_shaking_root_in_every_joint():
     per_joint = (joint_speeds(shaking) - joint_speeds(calm)).abs().mean(dim=(0, 1))
     assert bool((per_joint > 0.02).all())
     assert float(acceleration_loss(shaking, calm)) > 2 * float(speed_loss(shaking, calm)) > 0
+
+
+def test_the_motion_statistics_loss_asks_for_the_amount_of_motion_not_its_timing():
+    t = torch.arange(60.0)[:, None, None] * (6.2832 / 20)  # three whole periods of 20 frames
+    real = (0.3 * torch.sin(t + torch.arange(50.0).view(25, 2)))[None]
+    late = real.roll(5, dims=1)  # the same dance a quarter period later
+    still = real[:, :1].expand_as(real)
+    assert float(motion_statistics_loss(late, real)) < 0.02 < float(speed_loss(late, real))
+    # Standing still misses all the speed and all the acceleration: 1 + 1.
+    assert float(motion_statistics_loss(still, real)) == pytest.approx(2.0, abs=0.01)
+    # Twice the motion is 100 % too much of each.
+    assert float(motion_statistics_loss(2 * real - real[:, :1], real)) == pytest.approx(2.0, rel=1e-3)
+    # A clip where the real dancer stands still costs what its motion is worth against the batch's, not infinity.
+    pair_still = torch.cat([real, still])
+    assert float(motion_statistics_loss(torch.cat([real, real]), pair_still)) == pytest.approx(2.0, abs=0.01)
+

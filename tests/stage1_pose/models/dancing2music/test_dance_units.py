@@ -122,6 +122,11 @@ def test_beat_grid_covers_song_and_strides():
     np.testing.assert_allclose(np.diff(grid), 7.5)
     assert du.beat_stride(beats, 15.0) == 2
     np.testing.assert_allclose(np.diff(du.beat_grid(beats, 60, stride=2)), 15.0)
+    # A dancer whose kinematic beats come twice per music beat dances on the half beats, music beats included.
+    assert du.beat_stride(beats, 3.5) == 0.5
+    half = du.beat_grid(beats, 60, stride=0.5)
+    np.testing.assert_allclose(np.diff(half), 3.75)
+    assert set(beats) <= set(half) and half[0] <= 0 and half[-1] >= 59
     with pytest.raises(DancesynthError, match="fewer than two beats"):
         du.beat_grid(np.array([3.0]), 60)
     with pytest.raises(ValueError):
