@@ -17,6 +17,7 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import NUM_JOINTS
 from stage1_pose.models.base import Batch, Stage1Method
 from stage1_pose.models.kinematics import KinematicOutput, speed_loss
+from stage1_pose.models.windowing import windowed
 
 
 @dataclass(frozen=True)
@@ -26,7 +27,9 @@ class LSTMConfig:
     Not in the baseline (``paper`` keeps it as published): ``kinematic_output`` places the poses by forward
     kinematics (:mod:`stage1_pose.models.kinematics`); ``speed_weight`` adds an L1 loss between each joint's speed
     and the real dance's (:func:`~stage1_pose.models.kinematics.speed_loss`); ``epoch_windows`` > 0 makes an epoch
-    that many training windows whatever the dataset's size (0: one pass).
+    that many training windows whatever the dataset's size (0: one pass); ``windowed_generation`` runs the LSTM
+    over overlapping windows of ``window_frames`` (:func:`~stage1_pose.models.windowing.windowed`), the length it
+    was trained on, instead of once over the whole song, where its state drifts and the dance slows down.
     """
 
     feature_dim: int = 438
@@ -40,6 +43,7 @@ class LSTMConfig:
     epoch_windows: int = 0
     kinematic_output: bool = False
     speed_weight: float = 0.0
+    windowed_generation: bool = False
 
     @classmethod
     def preset(cls, name: str) -> "LSTMConfig":
@@ -54,7 +58,7 @@ LSTM_PRESETS: dict[str, LSTMConfig] = {
     "paper": LSTMConfig(),
     # epoch_windows: what one pass over the built-in dataset's 48 training clips of 60 s gives.
     "small": LSTMConfig(hidden=128, layers=2, dropout=0.0, lr=1e-3, batch_size=16, window_frames=90, epochs=60,
-                        epoch_windows=912, kinematic_output=True, speed_weight=5.0),
+                        epoch_windows=912, kinematic_output=True, speed_weight=5.0, windowed_generation=True),
 }
 
 
@@ -71,10 +75,10 @@ class LSTMBaseline(Stage1Method):
         self.out = nn.Linear(config.hidden, NUM_JOINTS * 2)
         self.kinematics = KinematicOutput() if config.kinematic_output else None
 
-    def forward(self, features: torch.Tensor, lengths: torch.Tensor | None = None) -> torch.Tensor:
+    def forward(self, features: torch.Tensor, lengths: torch.Tensor | None = None, window: int = 0) -> torch.Tensor:
         """``[B, T, feature_dim]`` -> ``[B, T, 25, 2]``; with kinematic output, bones of ``lengths`` (``[B, 1, 25]``,
-        default the training data's mean body)."""
-        h, _ = self.lstm(features)
+        default the training data's mean body); ``window`` > 0: the LSTM runs on windows of that many frames."""
+        h = windowed(lambda f: self.lstm(f)[0], (features,), window) if window > 0 else self.lstm(features)[0]
         out = self.out(h).reshape(features.shape[0], features.shape[1], NUM_JOINTS, 2)
         return out if self.kinematics is None else self.kinematics(out, lengths)
 
@@ -101,4 +105,4 @@ class LSTMBaseline(Stage1Method):
     def generate(self, features: torch.Tensor, beats: torch.Tensor,
                  generator: torch.Generator | None = None) -> torch.Tensor:
         """Deterministic: ``beats`` and ``generator`` are ignored."""
-        return self(features)
+        return self(features, window=self.config.window_frames if self.config.windowed_generation else 0)

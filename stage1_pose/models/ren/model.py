@@ -29,6 +29,7 @@ from stage1_pose.models.base import Batch, Stage1Method, bce_with_constant_targe
 from stage1_pose.models.kinematics import KinematicOutput, motion_statistics_loss, speed_loss
 from stage1_pose.models.ren.perceptual import PosePerceptualLoss
 from stage1_pose.models.ren.variety import best_of, held_noise
+from stage1_pose.models.windowing import windowed
 
 ABLATIONS = ("l1", "global_d", "local_d", "full")
 
@@ -59,8 +60,9 @@ class RenConfig:
     ``motion_weight`` adds :func:`~stage1_pose.models.kinematics.motion_statistics_loss` on every draw (each should
     move as much as the real dance, however it times it: the draw nearest in L1 is the stillest one);
     ``epoch_windows`` > 0 makes an epoch that many training windows whatever the dataset's size (0: one pass).
-    ``windowed_generation`` encodes a song in overlapping windows of ``window_frames`` (:func:`windowed`), the
-    length the recurrent encoders were trained on; the paper runs them over the whole test sequence.
+    ``windowed_generation`` encodes a song in overlapping windows of ``window_frames``, the length the recurrent
+    encoders were trained on (:func:`~stage1_pose.models.windowing.windowed`); the paper runs them over the whole
+    test sequence.
     """
 
     samples_per_frame: int = 1024
@@ -240,8 +242,8 @@ class RenGenerator(nn.Module):
         self.kinematics = KinematicOutput() if config.kinematic_output else None
 
     def forward(self, audio: torch.Tensor, noise: torch.Tensor, window: int = 0) -> torch.Tensor:
-        """``window`` > 0 runs both recurrent encoders on overlapping windows of that many frames (see
-        :func:`windowed`), the length they were trained on, instead of once over the whole song."""
+        """``window`` > 0 runs both recurrent encoders on overlapping windows of that many frames
+        (:func:`~stage1_pose.models.windowing.windowed`) instead of once over the whole song."""
         if window <= 0:
             return self.decode(self.music(audio), noise)
         return self.head(windowed(lambda a, n: torch.cat([self.music(a), self.noise_code(n)], dim=-1),
@@ -261,38 +263,6 @@ class RenGenerator(nn.Module):
         b, t, _ = codes.shape
         out = self.out(self.dropout(x)).view(b, t, NUM_JOINTS, 2)
         return out if self.kinematics is None else self.kinematics(out, lengths)
-
-
-def windowed(encode: Callable[..., torch.Tensor], inputs: tuple[torch.Tensor, ...], window: int) -> torch.Tensor:
-    """``encode`` (``[B, t, ...]`` inputs -> ``[B, t, C]``) over windows of ``window`` frames, consecutive windows
-    sharing an eighth of a window where their codes cross-fade linearly: every frame's code comes from windows of
-    the training length (a recurrent encoder run over a whole song drifts into states it never saw, and the dance
-    slows down after the first window). A short overlap, because a blend of two windows' codes is a calmer code,
-    and none would leave a jump. Inputs of at most one window are encoded at once."""
-    frames = inputs[0].shape[1]
-    if frames <= window:
-        return encode(*inputs)
-    overlap = window // 8
-    hop = window - overlap
-    starts = [*range(0, frames - window, hop), frames - window]
-    ramp = torch.ones(window, device=inputs[0].device)
-    if overlap:
-        rise = (torch.arange(overlap, device=ramp.device) + 0.5) / overlap
-        ramp[:overlap], ramp[-overlap:] = rise, rise.flip(0)
-    total, mass = None, inputs[0].new_zeros(frames)
-    for start in starts:
-        # The song's first and last frames have no neighbouring window to fade into.
-        weight = ramp.clone()
-        if start == 0:
-            weight[:overlap] = 1.0
-        if start == frames - window:
-            weight[window - overlap:] = 1.0
-        code = encode(*(x[:, start:start + window] for x in inputs)) * weight[:, None]
-        if total is None:
-            total = code.new_zeros(code.shape[0], frames, code.shape[2])
-        total[:, start:start + window] += code
-        mass[start:start + window] += weight
-    return total / mass[:, None]
 
 
 def frame_context(x: torch.Tensor, k: int) -> torch.Tensor:

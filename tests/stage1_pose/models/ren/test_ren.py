@@ -18,7 +18,6 @@ from stage1_pose.models.ren.model import (
     gradient_penalty,
     sub_sequences,
     temporal_difference,
-    windowed,
 )
 from stage1_pose.models.ren.perceptual import PosePerceptualLoss
 from stage1_pose.models.ren.stgcn import STGCN, STGCNConfig
@@ -169,19 +168,6 @@ def test_velocity_loss_only_where_configured():
         method._optimizers = method.configure_optimizers()
         logs = method.training_step(batch, 0)
         assert ("velocity" in logs) == expected and (not expected or logs["velocity"] > 0)
-
-
-def test_a_long_song_is_encoded_from_windows_of_the_training_length():
-    # An encoder whose state grows with every frame it reads, as a drifting recurrent state does.
-    def elapsed(x):
-        return torch.arange(1.0, x.shape[1] + 1).view(1, -1, 1).expand(x.shape[0], -1, 1)
-
-    codes = windowed(elapsed, (torch.zeros(2, 200, 3),), 40)
-    assert codes.shape == (2, 200, 1) and float(codes.max()) <= 40
-    # A per-frame encoder gives the same codes windowed or not: the cross-fade weights sum to one everywhere.
-    x = torch.randn(1, 200, 3)
-    torch.testing.assert_close(windowed(lambda a: 2 * a, (x,), 40), 2 * x)
-    assert torch.equal(windowed(elapsed, (x[:, :30],), 40), elapsed(x[:, :30]))
 
 
 def test_frame_context_stacks_neighbours_and_repeats_edges():
