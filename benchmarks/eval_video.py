@@ -66,7 +66,7 @@ def without_small_toes(seq: PoseSequence) -> PoseSequence:
 class HeldOut:
     """What :func:`held_out_quality` measured and rendered (model-resolution frames)."""
 
-    frames: range  # held-out frame indices of the target video
+    frames: range  # scored frame indices of the target video (held out unless training_frames)
     commanded: PoseSequence  # their poses (canvas pixels)
     framings: list[Framing]  # how each was framed
     generated: list[np.ndarray]
@@ -77,15 +77,17 @@ class HeldOut:
 
 
 def held_out_quality(run_dir: Path, frames: int = 0, device: str = "auto", ground_truth: Path | None = None,
-                     precision: str = "auto") -> HeldOut:
+                     precision: str = "auto", training_frames: bool = False) -> HeldOut:
     """Render the run's held-out frames (the first ``frames``, 0 = all) in ``precision`` and score them (see the
-    module doc)."""
+    module doc). ``training_frames``: score as many of the last training frames instead (learnt vs generalised)."""
     meta = load_meta(run_dir, KIND)
     config = config_from_dict(Pix2PixHDConfig, meta["config"])
     model = load_appearance_model(run_dir, device, precision=precision)
     poses = PoseSequence.load(run_dir / POSES_FILE)
     real = np.load(run_dir / frames_file(model.framing), mmap_mode="r")
-    _, held_out = split_ranges(len(poses), config.val_fraction)
+    train, held_out = split_ranges(len(poses), config.val_fraction)
+    if training_frames:
+        held_out = range(max(train.start, train.stop - len(held_out)), train.stop)
     stop = min(held_out.start + frames, held_out.stop) if frames else held_out.stop
     commanded = poses.slice_frames(held_out.start, stop)
     # Framed as in training: the following box's path is smoothed over the whole video, not the slice.

@@ -103,17 +103,20 @@ def run(args: argparse.Namespace) -> None:
             contact_sheet(reals, composited, out, args.sheets / f"{preset}.png")
             fps = held_out.commanded.fps
             scene = [pck(extracted(frames, fps), held_out.commanded) for frames in (composited, reals)]
+            seen = held_out_quality(run_dir, device="cpu", training_frames=True)
+            seen_scene = pck(extracted(scene_frames(run_dir, clip, seen)[1], fps), seen.commanded)
             meta = load_meta(run_dir, KIND)
             rows.append((preset, meta["trained_seconds"] / 60, meta["step"], held_out.ssim, held_out.psnr,
-                         *scene, trained, dance_s))
+                         *scene, seen.ssim, seen_scene, trained, dance_s))
     print(f"clip {clip}: {args.minutes:g} min per model; dance segment {args.dance_seconds:g} s of {SONG.name}")
     print("SSIM / PSNR: held-out frames at model resolution; PCK@0.1: BlazePose on the held-out frames of the whole")
-    print("scene (composited | real, the ceiling) vs the commanded poses; call s: this run's first call (0 if cached)")
+    print("scene (composited | real, the ceiling) vs the commanded poses; 'seen': the same on as many of the last")
+    print("training frames (learnt vs generalised); call s: this run's first call (0 if cached)")
     print(f"{'preset':<8} {'train min':>9} {'steps':>6} {'SSIM':>6} {'PSNR dB':>8} {'PCK gen':>8} {'PCK real':>9} "
-          f"{'call s':>7} {'dance s':>8} {'x real time':>11}")
-    for preset, minutes, steps, s, p, pg, pr, call, d in rows:
-        print(f"{preset:<8} {minutes:9.1f} {steps:6d} {s:6.3f} {p:8.2f} {pg:8.3f} {pr:9.3f} {call:7.0f} {d:8.1f} "
-              f"{args.dance_seconds / d:11.2f}")
+          f"{'SSIM seen':>9} {'PCK seen':>8} {'call s':>7} {'dance s':>8} {'x real time':>11}")
+    for preset, minutes, steps, s, p, pg, pr, ss, ps, call, d in rows:
+        print(f"{preset:<8} {minutes:9.1f} {steps:6d} {s:6.3f} {p:8.2f} {pg:8.3f} {pr:9.3f} {ss:9.3f} {ps:8.3f} "
+              f"{call:7.0f} {d:8.1f} {args.dance_seconds / d:11.2f}")
 
 
 def main() -> None:
