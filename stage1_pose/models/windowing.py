@@ -9,29 +9,29 @@ import torch
 
 
 def windowed(encode: Callable[..., torch.Tensor], inputs: tuple[torch.Tensor, ...], window: int) -> torch.Tensor:
-    """``encode`` (``[B, t, ...]`` inputs -> ``[B, t, C]``) over windows of ``window`` frames, consecutive windows
-    sharing an eighth of a window where their codes cross-fade linearly: every frame's code comes from windows of
-    the training length (a recurrent encoder run over a whole song drifts into states it never saw, and the dance
-    slows down after the first window). A short overlap, because a blend of two windows' codes is a calmer code,
-    and none would leave a jump. Inputs of at most one window are encoded at once."""
+    """``encode`` (``[B, t, ...]`` inputs -> ``[B, t, C]``) over windows of ``window`` frames; consecutive windows'
+    codes cross-fade linearly over an eighth of a window: every frame's code comes from windows of the training
+    length (a recurrent encoder run over a whole song drifts into states it never saw, and the dance slows down
+    after the first window). A short fade, because a blend of two windows' codes is a calmer code, and none would
+    leave a jump. Inputs of at most one window are encoded at once."""
     frames = inputs[0].shape[1]
     if frames <= window:
         return encode(*inputs)
     overlap = window // 8
     hop = window - overlap
     starts = [*range(0, frames - window, hop), frames - window]
-    ramp = torch.ones(window, device=inputs[0].device)
-    if overlap:
-        rise = (torch.arange(overlap, device=ramp.device) + 0.5) / overlap
-        ramp[:overlap], ramp[-overlap:] = rise, rise.flip(0)
+    rise = (torch.arange(overlap, device=inputs[0].device) + 0.5) / max(overlap, 1)
     total, mass = None, inputs[0].new_zeros(frames)
-    for start in starts:
-        # The song's first and last frames have no neighbouring window to fade into.
-        weight = ramp.clone()
-        if start == 0:
-            weight[:overlap] = 1.0
-        if start == frames - window:
-            weight[window - overlap:] = 1.0
+    for i, start in enumerate(starts):
+        weight = torch.ones(window, device=rise.device)
+        if i > 0:
+            # Fade in where the previous window fades out; the last window, which ends on the song's last frame,
+            # starts closer than a hop after it and reads the frames before that fade as context only.
+            fade = starts[i - 1] + hop - start
+            weight[:fade] = 0.0
+            weight[fade:fade + overlap] = rise
+        if i < len(starts) - 1:
+            weight[window - overlap:] = rise.flip(0)
         code = encode(*(x[:, start:start + window] for x in inputs)) * weight[:, None]
         if total is None:
             total = code.new_zeros(code.shape[0], frames, code.shape[2])

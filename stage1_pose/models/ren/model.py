@@ -242,14 +242,16 @@ class RenGenerator(nn.Module):
         self.kinematics = KinematicOutput() if config.kinematic_output else None
 
     def forward(self, audio: torch.Tensor, noise: torch.Tensor, window: int = 0) -> torch.Tensor:
-        """``window`` > 0 runs both recurrent encoders on overlapping windows of that many frames
-        (:func:`~stage1_pose.models.windowing.windowed`) instead of once over the whole song."""
+        """``[B, T, S]`` audio, ``[B, T, noise_dim]`` noise -> ``[B, T, 25, 2]`` poses; ``window`` > 0 runs both
+        recurrent encoders on windows of that many frames (:func:`~stage1_pose.models.windowing.windowed`) instead
+        of once over the whole song."""
         if window <= 0:
             return self.decode(self.music(audio), noise)
         return self.head(windowed(lambda a, n: torch.cat([self.music(a), self.noise_code(n)], dim=-1),
                                   (audio, noise), window))
 
     def noise_code(self, noise: torch.Tensor) -> torch.Tensor:
+        """``[B, T, noise_dim]`` noise -> ``[B, T, noise_dim]`` codes of the noise GRU."""
         return torch.tanh(self.noise_gru(noise)[0])
 
     def decode(self, h: torch.Tensor, noise: torch.Tensor, lengths: torch.Tensor | None = None) -> torch.Tensor:
@@ -532,7 +534,7 @@ class RenMethod(Stage1Method):
                 loss = loss + cfg.speed_weight * speed
                 logs["speed"] = speed.item()
             if cfg.motion_weight > 0:
-                motion = motion_statistics_loss(fakes.view(k * b, t, NUM_JOINTS, 2), real.repeat(k, 1, 1, 1))
+                motion = motion_statistics_loss(fakes, real.repeat(k, 1, 1, 1))
                 loss = loss + cfg.motion_weight * motion
                 logs["motion"] = motion.item()
             if self.d_local is not None:

@@ -121,4 +121,3 @@ def test_the_motion_statistics_loss_asks_for_the_amount_of_motion_not_its_timing
     # A clip where the real dancer stands still costs what its motion is worth against the batch's, not infinity.
     pair_still = torch.cat([real, still])
     assert float(motion_statistics_loss(torch.cat([real, real]), pair_still)) == pytest.approx(2.0, abs=0.01)
-

@@ -16,3 +16,20 @@ def test_a_long_song_is_encoded_from_windows_of_the_training_length():
     x = torch.randn(1, 200, 3)
     torch.testing.assert_close(windowed(lambda a: 2 * a, (x,), 40), 2 * x)
     assert torch.equal(windowed(elapsed, (x[:, :30],), 40), elapsed(x[:, :30]))
+
+
+def test_windows_cross_fade_over_an_eighth_of_a_window_also_at_the_songs_end():
+    window = 40
+    for frames in (41, 75, 76, 200):
+        # Each window's code is its index: a frame is blended exactly where it holds a fraction.
+        calls = []
+
+        def index(x, calls=calls):
+            calls.append(None)
+            return torch.full((1, x.shape[1], 1), float(len(calls) - 1))
+
+        codes = windowed(index, (torch.zeros(1, frames, 1),), window)[0, :, 0]
+        junctions = int(codes.max())
+        assert junctions >= 1 and int((codes != codes.round()).sum()) == junctions * (window // 8), frames
+        assert torch.all(codes.diff() >= 0)
+

@@ -1,3 +1,5 @@
+from dataclasses import replace
+
 import torch
 
 # The machine is shared: one intra-op thread avoids OpenMP contention that makes tiny ops take milliseconds.
@@ -26,3 +28,15 @@ def test_overfits_one_clip():
     batch = Batch(torch.randn(1, 16, 6), torch.zeros(1, 16, dtype=torch.bool), poses, torch.zeros(1, dtype=torch.long))
     losses = [model.training_step(batch, 0)["l1"] for _ in range(150)]
     assert losses[-1] < losses[0] / 5
+
+
+def test_a_long_song_is_danced_from_windows_of_the_training_length():
+    model = LSTMBaseline(replace(TINY, windowed_generation=True)).eval()
+    features, beats = torch.randn(1, 100, 6), torch.zeros(1, 100, dtype=torch.bool)
+    dance = model.generate(features, beats)
+    assert dance.shape == (1, 100, 25, 2)
+    # Windows of 16 frames start every 14: frames 44-53 come from the window starting at 42 alone, run from a
+    # fresh state, not from a state carried over the song.
+    assert torch.allclose(dance[:, 44:54], model(features[:, 42:58])[:, 2:12], atol=1e-5)
+    assert not torch.allclose(dance[:, 44:54], model(features)[:, 44:54], atol=1e-3)
+
