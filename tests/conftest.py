@@ -4,6 +4,10 @@ drum loops with known beats."""
 import os
 
 os.environ.setdefault("NUMBA_CACHE_DIR", os.path.join(os.path.dirname(__file__), "..", ".venv", "numba-cache"))
+if "PYTEST_XDIST_WORKER" in os.environ:
+    # Parallel test processes writing librosa's compiled kernels into one numba cache at once crash (segfault on a
+    # fresh install): each gets its own.
+    os.environ["NUMBA_CACHE_DIR"] = os.path.join(os.environ["NUMBA_CACHE_DIR"], os.environ["PYTEST_XDIST_WORKER"])
 
 from pathlib import Path  # noqa: E402
 
