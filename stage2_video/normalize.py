@@ -7,6 +7,11 @@ positions, and the median body height (ankle to top of head) of the frames near 
 ankle sits a fraction ``b`` of the way from the source's far to close position is scaled by the height ratio
 interpolated at ``b`` and moved so that its ankle sits at the same fraction of the target's range.
 Horizontally the source's median hip x is moved onto the target's.
+
+A source whose ankles stay within a quarter of its body height (a dance on the spot: its ankle range is foot
+lifts and jumps, not depth) gets one scale and one placement for all frames, at the middle of the target's range,
+and keeps its own up-and-down motion at that scale; mapping its range onto the target's would stretch a 23-px
+foot lift into a 500-px rise.
 """
 
 from __future__ import annotations
@@ -25,8 +30,8 @@ MIN_CONFIDENCE = 0.05
 FAR_PERCENTILE, CLOSE_PERCENTILE = 5.0, 95.0
 # Frames within this share of the ankle range from an extreme contribute to that extreme's median height.
 EXTREME_SHARE = 0.2
-# Below this ankle-y spread (pixels) a video has no usable depth range: one scale for every frame.
-MIN_SPREAD = 1.0
+# Below this ankle-y spread, as a share of the body height, a video has no depth range: one scale for every frame.
+DEPTH_SHARE = 0.25
 
 
 @dataclass(frozen=True)
@@ -51,6 +56,11 @@ class BodyStats:
     @property
     def spread(self) -> float:
         return self.close_y - self.far_y
+
+    @property
+    def has_depth(self) -> bool:
+        """Whether the ankle range is depth (the person moves towards and away from the camera), not foot lifts."""
+        return self.spread >= DEPTH_SHARE * (self.far_height + self.close_height) / 2
 
 
 def _ankle_y(seq: PoseSequence) -> np.ndarray:
@@ -94,24 +104,19 @@ class PoseNormalizer:
     source: BodyStats
     target: BodyStats
 
-    def _fraction(self, ankle_y: np.ndarray) -> np.ndarray:
-        """``[T]`` position between the source's far (0) and close (1) ankle y; 0.5 without a depth range."""
-        s = self.source
-        if s.spread < MIN_SPREAD:
-            return np.full_like(ankle_y, 0.5)
-        return (ankle_y - s.far_y) / s.spread
-
     def apply(self, seq: PoseSequence) -> PoseSequence:
         """A copy of ``seq`` on the target canvas: per frame, scaled about the ankle and translated.
 
-        Frames without visible ankles use the source's median ankle range midpoint.
+        Frames without visible ankles, and every frame of a source without a depth range, use the source's ankle
+        range midpoint.
         """
         s, t = self.source, self.target
+        middle = (s.far_y + s.close_y) / 2.0
         ankle = _ankle_y(seq)
-        ankle = np.where(np.isfinite(ankle), ankle, (s.far_y + s.close_y) / 2.0)
-        b = self._fraction(ankle)
+        ankle = np.where(np.isfinite(ankle) & s.has_depth, ankle, middle)
+        b = (ankle - s.far_y) / s.spread if s.has_depth else np.full_like(ankle, 0.5)
         scale = t.far_height / s.far_height + b * (t.close_height / s.close_height - t.far_height / s.far_height)
-        new_ankle = t.far_y + b * t.spread if t.spread >= MIN_SPREAD else np.full_like(b, (t.far_y + t.close_y) / 2)
+        new_ankle = t.far_y + b * t.spread if t.has_depth else np.full_like(b, (t.far_y + t.close_y) / 2)
         kp = seq.keypoints.astype(np.float64)
         kp[..., 0] = t.center_x + scale[:, None] * (kp[..., 0] - s.center_x)
         kp[..., 1] = new_ankle[:, None] + scale[:, None] * (kp[..., 1] - ankle[:, None])

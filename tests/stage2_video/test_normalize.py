@@ -56,3 +56,21 @@ def test_no_visible_body_is_a_user_error():
     seq.keypoints[..., 2] = 0.0
     with pytest.raises(DancesynthError, match="ankles and the head"):
         body_stats(seq)
+
+
+def test_a_dance_on_the_spot_keeps_its_foot_lifts_at_body_scale():
+    target = _walking_person()
+    still = target.slice_frames(0, 1).keypoints
+    dance = np.repeat(still, 60, axis=0)
+    lift = 12.0 * np.sin(np.linspace(0, 12, 60))  # the whole body bobs 12 px: foot lifts, not depth
+    dance[..., 1] += lift[:, None]
+    source = target.replace(dance)
+    stats = body_stats(target)
+    out = fit_normalization(source, stats).apply(source)
+    height = out.xy[:, 11, 1] - out.xy[:, 0, 1]
+    scale = float(np.median(height)) / float(np.median(source.xy[:, 11, 1] - source.xy[:, 0, 1]))
+    # Before, the 24-px range was mapped onto the target's 270-px depth range: the dancer rose and sank ~270 px.
+    assert np.ptp(out.xy[:, 11, 1]) == pytest.approx(scale * np.ptp(lift), rel=0.05)
+    assert np.ptp(height) < 0.05 * np.median(height)
+    assert float(np.median(out.xy[:, 11, 1])) == pytest.approx((stats.far_y + stats.close_y) / 2, abs=scale * 12)
+
