@@ -62,14 +62,11 @@ def strip(images: list[np.ndarray], height: int = 240) -> np.ndarray:
                                       interpolation=cv2.INTER_AREA) for im in images], axis=1)
 
 
-def scene_frames(run: Path, clip: Path, held_out) -> tuple[list[np.ndarray], list[np.ndarray]]:
-    """(real, composited) held-out frames of the whole scene at the clip's resolution."""
-    model = load_appearance_model(run, "cpu", optimize=False)
-    compositor = scene_compositor(run, model.canvas)
-    reals = [frame for t, frame in enumerate(read_frames(clip)) if t in held_out.frames]
-    composited = [compositor.frame(g, kp, f) for g, kp, f in zip(held_out.generated, held_out.commanded.keypoints,
-                                                                   held_out.framings)]
-    return reals, composited
+def composited_frames(run: Path, scored) -> list[np.ndarray]:
+    """The generated frames of ``scored`` (:class:`eval_video.HeldOut`) composited into the whole scene."""
+    compositor = scene_compositor(run, load_appearance_model(run, "cpu", optimize=False).canvas)
+    return [compositor.frame(g, kp, f) for g, kp, f in zip(scored.generated, scored.commanded.keypoints,
+                                                            scored.framings)]
 
 
 def contact_sheet(reals: list[np.ndarray], composited: list[np.ndarray], dance_video: Path, out: Path,
@@ -99,12 +96,13 @@ def run(args: argparse.Namespace) -> None:
             dance(SONG, out, target=clip, cache=args.model_cache, train_minutes=args.minutes, preset=preset,
                   duration=args.dance_seconds, device="cpu")
             dance_s = time.perf_counter() - start
-            reals, composited = scene_frames(run_dir, clip, held_out)
+            reals = [frame for t, frame in enumerate(read_frames(clip)) if t in held_out.frames]
+            composited = composited_frames(run_dir, held_out)
             contact_sheet(reals, composited, out, args.sheets / f"{preset}.png")
             fps = held_out.commanded.fps
             scene = [pck(extracted(frames, fps), held_out.commanded) for frames in (composited, reals)]
             seen = held_out_quality(run_dir, device="cpu", training_frames=True)
-            seen_scene = pck(extracted(scene_frames(run_dir, clip, seen)[1], fps), seen.commanded)
+            seen_scene = pck(extracted(composited_frames(run_dir, seen), fps), seen.commanded)
             meta = load_meta(run_dir, KIND)
             rows.append((preset, meta["trained_seconds"] / 60, meta["step"], held_out.ssim, held_out.psnr,
                          *scene, seen.ssim, seen_scene, trained, dance_s))

@@ -13,9 +13,9 @@ def windowed(encode: Callable[..., torch.Tensor], inputs: tuple[torch.Tensor, ..
     codes cross-fade linearly over an eighth of a window: every frame's code comes from windows of the training
     length (a recurrent encoder run over a whole song drifts into states it never saw, and the dance slows down
     after the first window). A short fade, because a blend of two windows' codes is a calmer code, and none would
-    leave a jump. Inputs of at most one window are encoded at once."""
+    leave a jump. Inputs of at most one window, and every input when ``window`` <= 0, are encoded at once."""
     frames = inputs[0].shape[1]
-    if frames <= window:
+    if window <= 0 or frames <= window:
         return encode(*inputs)
     overlap = window // 8
     hop = window - overlap

@@ -78,7 +78,7 @@ class LSTMBaseline(Stage1Method):
     def forward(self, features: torch.Tensor, lengths: torch.Tensor | None = None, window: int = 0) -> torch.Tensor:
         """``[B, T, feature_dim]`` -> ``[B, T, 25, 2]``; with kinematic output, bones of ``lengths`` (``[B, 1, 25]``,
         default the training data's mean body); ``window`` > 0: the LSTM runs on windows of that many frames."""
-        h = windowed(lambda f: self.lstm(f)[0], (features,), window) if window > 0 else self.lstm(features)[0]
+        h = windowed(lambda f: self.lstm(f)[0], (features,), window)
         out = self.out(h).reshape(features.shape[0], features.shape[1], NUM_JOINTS, 2)
         return out if self.kinematics is None else self.kinematics(out, lengths)
 

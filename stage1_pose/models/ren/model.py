@@ -245,8 +245,6 @@ class RenGenerator(nn.Module):
         """``[B, T, S]`` audio, ``[B, T, noise_dim]`` noise -> ``[B, T, 25, 2]`` poses; ``window`` > 0 runs both
         recurrent encoders on windows of that many frames (:func:`~stage1_pose.models.windowing.windowed`) instead
         of once over the whole song."""
-        if window <= 0:
-            return self.decode(self.music(audio), noise)
         return self.head(windowed(lambda a, n: torch.cat([self.music(a), self.noise_code(n)], dim=-1),
                                   (audio, noise), window))
 

@@ -16,6 +16,7 @@ def test_a_long_song_is_encoded_from_windows_of_the_training_length():
     x = torch.randn(1, 200, 3)
     torch.testing.assert_close(windowed(lambda a: 2 * a, (x,), 40), 2 * x)
     assert torch.equal(windowed(elapsed, (x[:, :30],), 40), elapsed(x[:, :30]))
+    assert torch.equal(windowed(elapsed, (x,), 0), elapsed(x))  # window 0: the whole input at once
 
 
 def test_windows_cross_fade_over_an_eighth_of_a_window_also_at_the_songs_end():
