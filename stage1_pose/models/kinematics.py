@@ -102,16 +102,17 @@ def acceleration_loss(fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
 
 
 def motion_statistics_loss(fake: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
-    """How far ``[B, T, 25, 2]`` generated clips are from moving as much as their real clips: for speed and for
-    acceleration magnitude on the canvas, the L1 gap between each joint's clip mean, summed over joints and clips,
-    relative to the real clips' sum (each of the two terms: 0.4 = 40 % too much or too little motion). It asks for
+    """How far ``[B, T, 25, 2]`` generated clips are from moving as much as ``[B', T', 25, 2]`` real clips: for speed
+    and for acceleration magnitude on the canvas, the L1 gap between each joint's mean over the batch, summed over
+    joints, relative to the real sum (each of the two terms: 0.4 = 40 % too much or too little motion). It asks for
     the amount of motion, not its timing, so an uncertain model cannot lower it by standing still (as it can a
-    frame-wise L1). Relative to the whole batch, not to each clip, so a clip where the dancer stands still does not
-    divide by nearly 0."""
+    frame-wise L1). Batch means, not each clip's: a model that cannot tell a clip where the dancer sweeps an arm
+    from one where they hold it is asked for the mean speed, where a per-clip gap is smallest at the median clip's
+    (measured: wrists stuck at 0.55x real speed whatever the loss's weight)."""
     loss = fake.new_zeros(())
     for order in (1, 2):
-        made = _change_magnitudes(fake, order).mean(dim=1)
-        wanted = _change_magnitudes(real, order).mean(dim=1)
+        made = _change_magnitudes(fake, order).mean(dim=(0, 1))
+        wanted = _change_magnitudes(real, order).mean(dim=(0, 1))
         loss = loss + (made - wanted).abs().sum() / wanted.sum().clamp_min(1e-6)
     return loss
 

@@ -9,7 +9,7 @@ variety: another seed gives another dance - fed the previous pose (frame 0: the 
 choreography code drawn per segment (:mod:`stage1_pose.models.dance_revolution.segment_latent`), because the
 decoder forgets its initial state within a few frames and seeds then give the same dance; and
 (``beat_phase_input``) the frame's phase between two of the song's beats
-(:mod:`stage1_pose.models.dance_revolution.beat_clock`), because the music reaches the paper's LSTM
+(:mod:`stage1_pose.models.beat_clock`), because the music reaches the paper's LSTM
 only through its own fed-back poses and the moves then drift off the beat; and (``z_smoothing``) the music's
 term of the output is smoothed in time, because ``z_i`` follows the frame-to-frame changes of the features and made
 the body jitter; and (``speed_weight``) the loss also compares each joint's speed with the real dance's, because
@@ -37,7 +37,7 @@ from torch import nn
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import NUM_JOINTS
 from stage1_pose.models.base import Batch, Stage1Method
-from stage1_pose.models.dance_revolution.beat_clock import beat_phase, phase_features
+from stage1_pose.models.beat_clock import beat_phase, phase_features
 from stage1_pose.models.dance_revolution.local_attention import LocalSelfAttention
 from stage1_pose.models.dance_revolution.segment_latent import (
     SegmentPosterior,

@@ -9,8 +9,8 @@ Objective (Eq. 7): adversarial (both D) + w_P pose perceptual (ST-GCN, Eq. 1) + 
 global D + w_L1 L1, plus a WGAN-GP gradient penalty and the attention penalty in the global D's loss.
 
 Shapes: audio ``[B, T, S]`` raw samples (the ``waveform`` features), S = ``samples_per_frame`` per pose frame;
-poses ``[B, T, 25, 2]`` model coordinates (:func:`dancesynth.core.skeleton.normalize`). The method does not read
-the beats.
+poses ``[B, T, 25, 2]`` model coordinates (:func:`dancesynth.core.skeleton.normalize`); beat flags ``[B, T]``
+(read only with ``beat_phase_input``; the paper does not read the beats).
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ from torch import nn
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import NUM_JOINTS
 from stage1_pose.models.base import Batch, Stage1Method, bce_with_constant_target
+from stage1_pose.models.beat_clock import beat_phase, phase_features
 from stage1_pose.models.kinematics import KinematicOutput, motion_statistics_loss, speed_loss
 from stage1_pose.models.ren.perceptual import PosePerceptualLoss
 from stage1_pose.models.ren.variety import best_of, held_noise
@@ -62,7 +63,9 @@ class RenConfig:
     ``epoch_windows`` > 0 makes an epoch that many training windows whatever the dataset's size (0: one pass).
     ``windowed_generation`` encodes a song in overlapping windows of ``window_frames``, the length the recurrent
     encoders were trained on (:func:`~stage1_pose.models.windowing.windowed`); the paper runs them over the whole
-    test sequence.
+    test sequence. ``beat_phase_input`` gives the pose head each frame's phase between two beats
+    (:mod:`stage1_pose.models.beat_clock`): the paper's generator hears the beats only through raw audio, and a
+    model that cannot tell when the next beat comes meets the L1 term by holding its arms still.
     """
 
     samples_per_frame: int = 1024
@@ -104,6 +107,7 @@ class RenConfig:
     speed_weight: float = 0.0
     motion_weight: float = 0.0
     windowed_generation: bool = False
+    beat_phase_input: bool = False
 
     @property
     def uses_local_d(self) -> bool:
@@ -144,7 +148,7 @@ _SMALL = RenConfig(window_frames=45, audio_channels=(8, 16, 32, 32), code_dim=64
                    mlp_hidden=128, mlp_blocks=2, dropout=0.0, d_channels=16, d_embed=64, attention_dim=16,
                    batch_size=8, epochs=10, noise_std=1.0, noise_frames=45, variety_samples=4, w_l1=50.0,
                    epoch_windows=1872, kinematic_output=True, motion_weight=5.0,
-                   windowed_generation=True)
+                   windowed_generation=True, beat_phase_input=True)
 
 # "small" / "paper" are the full model; "<row>-small" / "<row>-paper" the ablation rows.
 REN_PRESETS: dict[str, RenConfig] = {"small": _SMALL, "paper": _PAPER}
@@ -235,30 +239,44 @@ class RenGenerator(nn.Module):
         # One linear layer over the k frames centred on each frame: a temporal convolution whose weights keep
         # the paper's per-frame layer shape for k = 1 (so runs saved before this option still load).
         self.head_kernel = k
-        self.inp = nn.Linear(k * (2 * config.gru_hidden + config.noise_dim), config.mlp_hidden)
+        self.beat_phase_input = config.beat_phase_input
+        extra = 2 if config.beat_phase_input else 0
+        self.inp = nn.Linear(k * (2 * config.gru_hidden + config.noise_dim + extra), config.mlp_hidden)
         self.blocks = nn.Sequential(*[ResidualBlock(config.mlp_hidden) for _ in range(config.mlp_blocks)])
         self.dropout = nn.Dropout(config.dropout)
         self.out = nn.Linear(config.mlp_hidden, NUM_JOINTS * 2)
         self.kinematics = KinematicOutput() if config.kinematic_output else None
 
-    def forward(self, audio: torch.Tensor, noise: torch.Tensor, window: int = 0) -> torch.Tensor:
-        """``[B, T, S]`` audio, ``[B, T, noise_dim]`` noise -> ``[B, T, 25, 2]`` poses; ``window`` > 0 runs both
-        recurrent encoders on windows of that many frames (:func:`~stage1_pose.models.windowing.windowed`) instead
-        of once over the whole song."""
-        return self.head(windowed(lambda a, n: torch.cat([self.music(a), self.noise_code(n)], dim=-1),
-                                  (audio, noise), window))
+    def forward(self, audio: torch.Tensor, noise: torch.Tensor, window: int = 0,
+                beats: torch.Tensor | None = None) -> torch.Tensor:
+        """``[B, T, S]`` audio, ``[B, T, noise_dim]`` noise, ``[B, T]`` beat flags (needed with
+        ``beat_phase_input``) -> ``[B, T, 25, 2]`` poses; ``window`` > 0 runs both recurrent encoders on windows of
+        that many frames (:func:`~stage1_pose.models.windowing.windowed`) instead of once over the whole song."""
+        codes = windowed(lambda a, n: torch.cat([self.music(a), self.noise_code(n)], dim=-1), (audio, noise), window)
+        return self.head(self.with_phase(codes, beats))
+
+    def with_phase(self, codes: torch.Tensor, beats: torch.Tensor | None) -> torch.Tensor:
+        """``[B, T, C]`` per-frame codes -> ``[B, T, C + 2]`` with each frame's beat phase (sin, cos) from ``[B, T]``
+        beat flags when the generator reads the beats, else ``codes`` unchanged."""
+        if not self.beat_phase_input:
+            return codes
+        if beats is None:
+            raise DancesynthError("This Ren model times its moves by the beats; pass the song's beat flags.")
+        return torch.cat([codes, phase_features(beat_phase(beats)).to(codes)], dim=-1)
 
     def noise_code(self, noise: torch.Tensor) -> torch.Tensor:
         """``[B, T, noise_dim]`` noise -> ``[B, T, noise_dim]`` codes of the noise GRU."""
         return torch.tanh(self.noise_gru(noise)[0])
 
-    def decode(self, h: torch.Tensor, noise: torch.Tensor, lengths: torch.Tensor | None = None) -> torch.Tensor:
-        """Music codes ``h [B, T, 2 * gru_hidden]`` (from ``self.music``) + noise -> poses ``[B, T, 25, 2]``; with
-        kinematic output, bones of ``lengths`` (``[B, 1, 25]``, default the training data's mean body)."""
-        return self.head(torch.cat([h, self.noise_code(noise)], dim=-1), lengths)
+    def decode(self, h: torch.Tensor, noise: torch.Tensor, lengths: torch.Tensor | None = None,
+               beats: torch.Tensor | None = None) -> torch.Tensor:
+        """Music codes ``h [B, T, 2 * gru_hidden]`` (from ``self.music``) + noise (+ ``[B, T]`` beat flags) -> poses
+        ``[B, T, 25, 2]``; with kinematic output, bones of ``lengths`` (``[B, 1, 25]``, default the training data's
+        mean body)."""
+        return self.head(self.with_phase(torch.cat([h, self.noise_code(noise)], dim=-1), beats), lengths)
 
     def head(self, codes: torch.Tensor, lengths: torch.Tensor | None = None) -> torch.Tensor:
-        """Per-frame music and noise codes ``[B, T, 2 * gru_hidden + noise_dim]`` -> poses ``[B, T, 25, 2]``."""
+        """Per-frame codes ``[B, T, 2 * gru_hidden + noise_dim (+ 2 beat phase)]`` -> poses ``[B, T, 25, 2]``."""
         x = self.blocks(self.inp(frame_context(codes, self.head_kernel)))
         b, t, _ = codes.shape
         out = self.out(self.dropout(x)).view(b, t, NUM_JOINTS, 2)
@@ -488,7 +506,8 @@ class RenMethod(Stage1Method):
         codes = self.generator.music(audio).repeat(k, 1, 1)
         kinematics = self.generator.kinematics
         lengths = None if kinematics is None else kinematics.observe(real).repeat(k, 1, 1)
-        fakes = self.generator.decode(codes, self.sample_noise(k * b, t, real.device), lengths)
+        fakes = self.generator.decode(codes, self.sample_noise(k * b, t, real.device), lengths,
+                                      batch.beats.repeat(k, 1))
         fake, l1 = best_of(fakes.view(k, b, t, NUM_JOINTS, 2), real)
         logs: dict[str, float] = {}
         bone_rows = fakes.new_zeros(()) if kinematics is None else kinematics.take_penalty()
@@ -557,7 +576,8 @@ class RenMethod(Stage1Method):
     @torch.no_grad()
     def generate(self, features: torch.Tensor, beats: torch.Tensor,
                  generator: torch.Generator | None = None) -> torch.Tensor:
-        """``[B, T, S]`` audio -> ``[B, T, 25, 2]``; the noise (hence the dance) is drawn from ``generator``;
-        ``beats`` are not used."""
+        """``[B, T, S]`` audio, ``[B, T]`` beat flags (read with ``beat_phase_input``) -> ``[B, T, 25, 2]``; the
+        noise (hence the dance) is drawn from ``generator``."""
         noise = self.sample_noise(features.shape[0], features.shape[1], features.device, generator)
-        return self.generator(features, noise, self.config.window_frames if self.config.windowed_generation else 0)
+        window = self.config.window_frames if self.config.windowed_generation else 0
+        return self.generator(features, noise, window, beats.to(features.device))

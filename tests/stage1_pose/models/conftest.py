@@ -3,6 +3,7 @@ from collections.abc import Callable
 import pytest
 import torch
 
+from stage1_pose.models.beat_clock import beat_phase
 from stage1_pose.models.kinematics import bone_vectors, forward_kinematics, joint_lengths
 
 
@@ -29,3 +30,13 @@ def dances_one_way_or_the_other() -> Callable[[torch.Tensor, list[torch.Tensor],
         both = {int(torch.sign((d * move).sum())) for d in dances} == {-1, 1}
         return bool(nearest.median() < tolerance * move.abs().mean()) and both
     return check
+
+
+@pytest.fixture
+def dance_on_the_beats() -> Callable[[torch.Tensor, torch.Tensor], torch.Tensor]:
+    """``dance(beats [1, T], shape [50])`` -> ``[1, T, 25, 2]``: the body swings out to ``shape`` and back in every
+    beat interval, still on the beats."""
+    def dance(beats: torch.Tensor, shape: torch.Tensor) -> torch.Tensor:
+        phase = beat_phase(beats)
+        return ((1 - torch.cos(2 * torch.pi * phase))[..., None] / 2 * shape).reshape(1, -1, 25, 2)
+    return dance

@@ -121,3 +121,9 @@ def test_the_motion_statistics_loss_asks_for_the_amount_of_motion_not_its_timing
     # A clip where the real dancer stands still costs what its motion is worth against the batch's, not infinity.
     pair_still = torch.cat([real, still])
     assert float(motion_statistics_loss(torch.cat([real, real]), pair_still)) == pytest.approx(2.0, abs=0.01)
+    # One real clip sweeps, two hold still: moving at the mean speed everywhere fits, holding still (the median
+    # clip) misses all of it.
+    mixed = torch.cat([real, still, still])
+    third = real[:, :1] + (real - real[:, :1]) / 3
+    assert float(motion_statistics_loss(torch.cat([third] * 3), mixed)) < 0.01
+    assert float(motion_statistics_loss(torch.cat([still] * 3), mixed)) == pytest.approx(2.0, abs=0.02)

@@ -53,8 +53,12 @@ def test_presets_cover_every_ablation_row():
 def test_module_shapes():
     cfg = tiny()
     audio, poses = torch.randn(2, 20, S), torch.randn(2, 20, 25, 2)
-    out = RenGenerator(cfg)(audio, torch.randn(2, 20, cfg.noise_dim))
+    beats = torch.zeros(2, 20, dtype=torch.bool)
+    beats[:, ::6] = True
+    out = RenGenerator(cfg)(audio, torch.randn(2, 20, cfg.noise_dim), beats=beats)
     assert out.shape == (2, 20, 25, 2)
+    with pytest.raises(DancesynthError, match="beat flags"):
+        RenGenerator(cfg)(audio, torch.randn(2, 20, cfg.noise_dim))
     # 16 windows of 5 frames for the official 50-frame windows; derived from the window length.
     assert sub_sequences(torch.randn(1, 50, 25, 2), 5, 3).shape == (1, 16, 5, 25, 2)
     assert LocalTemporalDiscriminator(cfg)(poses).shape == (2, (20 - 5) // 3 + 1)
@@ -156,7 +160,7 @@ def test_even_head_kernel_is_a_user_error():
 
 
 def test_wide_head_kernel_generator_shapes():
-    out = RenGenerator(tiny(head_kernel=9))(torch.randn(2, 3, S), torch.randn(2, 3, 10))
+    out = RenGenerator(tiny(head_kernel=9, beat_phase_input=False))(torch.randn(2, 3, S), torch.randn(2, 3, 10))
     assert out.shape == (2, 3, 25, 2)
 
 
@@ -218,3 +222,35 @@ def test_noise_frames_and_variety_samples_must_be_positive():
     for field in ("noise_frames", "variety_samples"):
         with pytest.raises(DancesynthError, match="must be at least 1"):
             tiny(**{field: 0})
+
+
+def beat_flags(intervals: list[int], frames: int) -> torch.Tensor:
+    """``[1, frames]`` beat flags repeating ``intervals`` (frames), the first beat on frame 0."""
+    beats = torch.zeros(1, frames, dtype=torch.bool)
+    at = torch.tensor(intervals).repeat(frames).cumsum(0) - intervals[0]
+    beats[0, at[at < frames]] = True
+    return beats
+
+
+def ren_beat_timing_error(beat_phase_input: bool, dance_on_the_beats) -> float:
+    """Train the generator (L1 only) on one song with uneven beats; relative L1 error of the dance generated for
+    another song, with other beats."""
+    torch.manual_seed(0)
+    shape = torch.randn(50) * 0.5
+    method = RenMethod(replace(tiny("l1-small", kinematic_output=False, motion_weight=0.0, variety_samples=1,
+                                    beat_phase_input=beat_phase_input, lr_g=3e-3), window_frames=48))
+    method._optimizers = method.configure_optimizers()
+    beats = beat_flags([4, 7, 5, 8, 6], 48)
+    batch = Batch(torch.randn(1, 48, S), beats, dance_on_the_beats(beats, shape), torch.tensor([0]))
+    for _ in range(150):
+        method.training_step(batch, 0)
+    new_beats = beat_flags([6, 9, 5], 48)
+    wanted = dance_on_the_beats(new_beats, shape)
+    generated = method.eval().generate(torch.randn(1, 48, S), new_beats, torch.Generator().manual_seed(0))
+    return float((generated - wanted).abs().mean() / wanted.abs().mean())
+
+
+def test_beat_phase_input_times_the_moves_by_a_new_songs_beats(dance_on_the_beats):
+    # The paper's generator hears the beats only in the raw audio; with the beat phase it follows a new song's.
+    assert ren_beat_timing_error(True, dance_on_the_beats) < 0.25
+    assert ren_beat_timing_error(False, dance_on_the_beats) > 0.4

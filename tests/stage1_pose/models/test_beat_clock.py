@@ -2,7 +2,7 @@ import math
 
 import torch
 
-from stage1_pose.models.dance_revolution.beat_clock import beat_phase, phase_features
+from stage1_pose.models.beat_clock import beat_phase, phase_features
 
 
 def flags(frames: int, *rows: list[int]) -> torch.Tensor:
