@@ -40,6 +40,7 @@ from dancesynth.core.motion import (
     velocity_minimum_beats,
 )
 from stage1_pose.data.dataset import DanceDataset
+from stage1_pose.evaluate import row_names
 from stage1_pose.generate import generate_dance, load_pose_model
 
 TOLERANCES = (1, 2)
@@ -83,13 +84,13 @@ def long_songs(cache: Path, seconds: float) -> list[tuple[str, np.ndarray]]:
     return songs
 
 
-def slow_down_table(models: list[Path], songs: list[tuple[str, np.ndarray]], seeds: list[int],
+def slow_down_table(models: list[tuple[str, Path]], songs: list[tuple[str, np.ndarray]], seeds: list[int],
                     real_speed: float | None) -> None:
-    """Per model: last 10 s over first 10 s of the dances to ``songs`` (mean, min), and the last 10 s over the real
-    built-in dances' speed (min) when ``real_speed`` is given."""
+    """Per (row name, run folder): last 10 s over first 10 s of the dances to ``songs`` (mean, min), and the last
+    10 s over the real built-in dances' speed (min) when ``real_speed`` is given."""
     print(f"\nslow-down on {len(songs)} long songs x {len(songs[0][1]) / SR:.0f} s, seeds {seeds}")
     print(f"{'model':16s} {'end/start mean (min)':>21s} {'last 10 s/real min':>19s}")
-    for run in models:
+    for name, run in models:
         model = load_pose_model(run, device="cpu")
         window = int(round(SPEED_WINDOW * model.fps))
         ratios, ends = [], []
@@ -100,7 +101,7 @@ def slow_down_table(models: list[Path], songs: list[tuple[str, np.ndarray]], see
                 ends.append(mean_speed(xy[-window:], model.fps))
         ratio = np.array(ratios)
         end = f"{min(ends) / real_speed:19.2f}" if real_speed else f"{'-':>19s}"
-        print(f"{run.name:16s} {ratio.mean():12.2f} ({ratio.min():.2f}) {end}", flush=True)
+        print(f"{name:16s} {ratio.mean():12.2f} ({ratio.min():.2f}) {end}", flush=True)
 
 
 def main() -> None:
@@ -122,7 +123,8 @@ def main() -> None:
     summary = {}
     if args.per_song:
         print(f"{'model':16s} {'song':28s} {'bpm':>4s}  vmin hit/chance+-2  d2m hit/chance+-2  end/start")
-    for run in args.models:
+    runs = list(zip(row_names([str(m) for m in args.models], set()), args.models))
+    for name, run in runs:
         model = load_pose_model(run, device="cpu")
         rows = []
         for info, y in songs:
@@ -133,10 +135,10 @@ def main() -> None:
             row = {k: float(np.nanmean([s[k] for s in per_seed])) for k in per_seed[0]}
             rows.append(row)
             if args.per_song:
-                print(f"{run.name:16s} {info['id']:28s} {info['bpm']:4.0f}  "
+                print(f"{name:16s} {info['id']:28s} {info['bpm']:4.0f}  "
                       f"{row['vmin_hit2']:8.2f}/{row['vmin_chance2']:.2f}  "
                       f"{row['d2m_hit2']:8.2f}/{row['d2m_chance2']:.2f}  {row['end_over_start']:9.2f}", flush=True)
-        summary[run.name] = rows
+        summary[name] = rows
     shortest = min(len(y) for _, y in songs) / SR
     print(f"\n{len(songs)} songs x {args.seconds:.0f} s (shortest {shortest:.0f} s), seeds {args.seeds}; per song the "
           "seeds are averaged")
@@ -165,7 +167,7 @@ def main() -> None:
             print(f"{name:16s} {speed.mean():12.2f} ({speed.min():.2f}-{speed.max():.2f}) {end.min():19.2f} "
                   f"{legs:10.2f}")
     if args.long:
-        slow_down_table(args.models, long_songs(args.cache, args.long), args.seeds, real_speed)
+        slow_down_table(runs, long_songs(args.cache, args.long), args.seeds, real_speed)
 
 
 if __name__ == "__main__":

@@ -107,7 +107,8 @@ class PoseTrainer:
             raise DancesynthError(f"The batch size {self.batch_size} must be a multiple of the {self.world} "
                                   "processes; change --batch-size or --nproc_per_node.")
         window = options.window_frames or config.window_frames
-        stride = options.stride_frames or max(1, window // 2)
+        # A method config may set its own hop (``stride_frames``; 0 or absent: half a window).
+        stride = options.stride_frames or getattr(config, "stride_frames", 0) or max(1, window // 2)
         method_class = load_method(method_name)[0]
         self.data = WindowDataset(data_dir, "train", method_class.feature_kind, window, stride,
                                   progress=self.rank == 0)

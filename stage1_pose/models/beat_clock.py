@@ -12,6 +12,8 @@ import math
 
 import torch
 
+from dancesynth.core.errors import DancesynthError
+
 
 def beat_phase(beats: torch.Tensor, fallback_period: float = 8.0) -> torch.Tensor:
     """Phase ``[B, T]`` of every frame within its interval between two beat frames of ``beats`` ``[B, T]``.
@@ -32,6 +34,14 @@ def beat_phase(beats: torch.Tensor, fallback_period: float = 8.0) -> torch.Tenso
         start, period = at[k], at[k + 1] - at[k]
         rows.append(torch.remainder((frames - start) / period, 1.0))
     return torch.stack(rows) if rows else frames.new_zeros(0, beats.shape[1])
+
+
+def with_beat_phase(x: torch.Tensor, beats: torch.Tensor | None) -> torch.Tensor:
+    """``[B, T, C]`` per-frame inputs -> ``[B, T, C + 2]``: each frame's beat phase features appended, from ``[B, T]``
+    beat flags (a model built to read them cannot run without)."""
+    if beats is None:
+        raise DancesynthError("This model times its moves by the beats; pass the song's beat flags.")
+    return torch.cat([x, phase_features(beat_phase(beats.to(x.device))).to(x)], dim=-1)
 
 
 def phase_features(phase: torch.Tensor) -> torch.Tensor:

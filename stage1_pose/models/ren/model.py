@@ -26,7 +26,7 @@ from torch import nn
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import NUM_JOINTS
 from stage1_pose.models.base import Batch, Stage1Method, bce_with_constant_target
-from stage1_pose.models.beat_clock import beat_phase, phase_features
+from stage1_pose.models.beat_clock import with_beat_phase
 from stage1_pose.models.kinematics import KinematicOutput, motion_statistics_loss, speed_loss
 from stage1_pose.models.ren.perceptual import PosePerceptualLoss
 from stage1_pose.models.ren.variety import best_of, held_noise
@@ -258,11 +258,7 @@ class RenGenerator(nn.Module):
     def with_phase(self, codes: torch.Tensor, beats: torch.Tensor | None) -> torch.Tensor:
         """``[B, T, C]`` per-frame codes -> ``[B, T, C + 2]`` with each frame's beat phase (sin, cos) from ``[B, T]``
         beat flags when the generator reads the beats, else ``codes`` unchanged."""
-        if not self.beat_phase_input:
-            return codes
-        if beats is None:
-            raise DancesynthError("This Ren model times its moves by the beats; pass the song's beat flags.")
-        return torch.cat([codes, phase_features(beat_phase(beats)).to(codes)], dim=-1)
+        return with_beat_phase(codes, beats) if self.beat_phase_input else codes
 
     def noise_code(self, noise: torch.Tensor) -> torch.Tensor:
         """``[B, T, noise_dim]`` noise -> ``[B, T, noise_dim]`` codes of the noise GRU."""
@@ -580,4 +576,4 @@ class RenMethod(Stage1Method):
         noise (hence the dance) is drawn from ``generator``."""
         noise = self.sample_noise(features.shape[0], features.shape[1], features.device, generator)
         window = self.config.window_frames if self.config.windowed_generation else 0
-        return self.generator(features, noise, window, beats.to(features.device))
+        return self.generator(features, noise, window, beats)

@@ -40,3 +40,17 @@ def test_a_long_song_is_danced_from_windows_of_the_training_length():
     assert torch.allclose(dance[:, 44:54], model(features[:, 42:58])[:, 2:12], atol=1e-5)
     assert not torch.allclose(dance[:, 44:54], model(features)[:, 44:54], atol=1e-3)
 
+
+
+def beat_one_hot(beats: torch.Tensor) -> torch.Tensor:
+    """``[1, T, 6]`` features for ``[1, T]`` beat flags: the beat one-hot in every column."""
+    return beats[..., None].float().expand(-1, -1, 6)
+
+
+def test_beat_phase_input_times_the_moves_by_a_new_songs_beats(beat_following_error):
+    # The features' beat one-hot says when a beat is, not when the next one comes; the beat phase does.
+    def error(beat_phase_input: bool) -> float:
+        config = replace(TINY, window_frames=48, beat_phase_input=beat_phase_input)
+        return beat_following_error(lambda: LSTMBaseline(config), beat_one_hot)
+    assert error(True) < 0.1  # measured 0.04
+    assert error(False) > 0.25  # measured 0.34: the LSTM can count frames since the last beat, but not ahead
