@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Regenerates docs/stage1_report: the built-in dataset (60 songs: 48 train / 6 val / 6 test), every stage-1
-# method's `small` preset (Ren with its ST-GCN; the LSTM baseline for 5 minutes), then `dancesynth evaluate`.
+# method's `small` preset (Ren with its ST-GCN; the LSTM baseline for its 60 epochs, at most 10 min), then
+# `dancesynth evaluate`.
 # Usage: benchmarks/stage1_report.sh [WORK_DIR] [REPORT_DIR]   (about 1.5 h on one CPU core; finished steps are skipped)
 set -euo pipefail
 WORK=${1:-stage1_report_work}
@@ -19,7 +20,7 @@ done
 [ -f "$RUNS/ren/latest.json" ] || ds train-pose --method ren --data "$DS" --out "$RUNS/ren" --preset small \
   --preview-every 0 --set "stgcn_run=$RUNS/stgcn"
 [ -f "$RUNS/lstm/latest.json" ] || ds train-pose --method lstm --data "$DS" --out "$RUNS/lstm" --preset small \
-  --minutes 5 --preview-every 0
+  --minutes 10 --preview-every 0
 rm -rf "$REPORT.new"
 "$DANCESYNTH" evaluate --data "$DS" --models "$RUNS/dance_revolution" "$RUNS/dancing2music" "$RUNS/ren" "$RUNS/lstm" \
   --out "$REPORT.new" --trials 3 --seconds 60 --device cpu --grid-video

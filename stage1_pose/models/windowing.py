@@ -1,11 +1,13 @@
-"""Generation in windows of the training length, for methods whose recurrent encoders were trained on short
-windows but must dance whole songs."""
+"""Time-axis helpers of the recurrent methods: generation in windows of the training length, for encoders trained
+on short windows that must dance whole songs, and smoothing along time."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 
 import torch
+import torch.nn.functional as F
 
 
 def windowed(encode: Callable[..., torch.Tensor], inputs: tuple[torch.Tensor, ...], window: int) -> torch.Tensor:
@@ -38,3 +40,14 @@ def windowed(encode: Callable[..., torch.Tensor], inputs: tuple[torch.Tensor, ..
         total[:, start:start + window] += code
         mass[start:start + window] += weight
     return total / mass[:, None]
+
+
+def smooth_in_time(x: torch.Tensor, sigma: float) -> torch.Tensor:
+    """``[B, T, C]`` smoothed along T by a Gaussian of ``sigma`` frames (edges repeated); ``sigma`` 0: ``x``."""
+    if sigma <= 0:
+        return x
+    radius = int(math.ceil(3 * sigma))
+    taps = torch.exp(-0.5 * (torch.arange(-radius, radius + 1, dtype=x.dtype, device=x.device) / sigma) ** 2)
+    kernel = (taps / taps.sum()).expand(x.shape[2], 1, -1)
+    padded = F.pad(x.transpose(1, 2), (radius, radius), mode="replicate")
+    return F.conv1d(padded, kernel, groups=x.shape[2]).transpose(1, 2)

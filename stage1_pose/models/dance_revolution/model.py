@@ -47,6 +47,7 @@ from stage1_pose.models.dance_revolution.segment_latent import (
     prior_codes,
 )
 from stage1_pose.models.kinematics import KinematicOutput, acceleration_loss, speed_loss
+from stage1_pose.models.windowing import smooth_in_time
 
 POSE_DIM = NUM_JOINTS * 2
 SCHEDULES = ("const", "linear", "quadratic", "exponential")
@@ -275,17 +276,6 @@ class LSTMStepper:
 def extra_dim(cfg: DanceRevolutionConfig) -> int:
     """Numbers appended to each decoder input: the choreography code and the beat phase's (sin, cos)."""
     return cfg.code_dim + (2 if cfg.beat_phase_input else 0)
-
-
-def smooth_in_time(x: torch.Tensor, sigma: float) -> torch.Tensor:
-    """``[B, T, C]`` smoothed along T by a Gaussian of ``sigma`` frames (edges repeated); ``sigma`` 0: ``x``."""
-    if sigma <= 0:
-        return x
-    radius = int(math.ceil(3 * sigma))
-    taps = torch.exp(-0.5 * (torch.arange(-radius, radius + 1, dtype=x.dtype, device=x.device) / sigma) ** 2)
-    kernel = (taps / taps.sum()).expand(x.shape[2], 1, -1)
-    padded = F.pad(x.transpose(1, 2), (radius, radius), mode="replicate")
-    return F.conv1d(padded, kernel, groups=x.shape[2]).transpose(1, 2)
 
 
 class PoseDecoder(nn.Module):

@@ -1,7 +1,7 @@
 """The LSTM baseline of Dance Revolution's comparison (after Shlizerman et al. 2018): music features ->
 stacked LSTM -> poses, one pose per frame, deterministic, trained with L1; the baseline does not read the beats. The
-``small`` preset places its poses by forward kinematics (bones keep their length), adds a loss on each joint's speed
-and reads each frame's beat phase.
+``small`` preset places its poses by forward kinematics (bones keep their length), adds a loss on each joint's speed,
+reads each frame's beat phase, smooths the root's path and drops music features in training.
 
 Shapes: features ``[B, T, feature_dim]`` standardised features; beat flags ``[B, T]``; poses ``[B, T, 25, 2]`` model
 coordinates.
@@ -16,11 +16,11 @@ import torch.nn.functional as F
 from torch import nn
 
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.skeleton import NUM_JOINTS
+from dancesynth.core.skeleton import NUM_JOINTS, ROOT
 from stage1_pose.models.base import Batch, Stage1Method
 from stage1_pose.models.beat_clock import with_beat_phase
 from stage1_pose.models.kinematics import KinematicOutput, speed_loss
-from stage1_pose.models.windowing import windowed
+from stage1_pose.models.windowing import smooth_in_time, windowed
 
 
 @dataclass(frozen=True)
@@ -36,9 +36,15 @@ class LSTMConfig:
     ``stride_frames`` is the hop between training windows (0: the trainer's default, half a window); ``small``
     starts one every 7 frames, so windows begin at every phase of the beat and the bar: trained on windows that
     began every 45 frames (3 s, on the built-in songs' bars) the LSTM turned the body upside down in 30 % of the
-    frames of windows that began elsewhere, as generation's do (7 frames: 0.6 %; not a guarantee);
+    frames of windows that began elsewhere, as generation's do (7 frames: 0.6 %; the kinematic output's upright
+    torso now rules it out);
     ``beat_phase_input`` appends each frame's phase between two beats to its features
-    (:mod:`stage1_pose.models.beat_clock`): the features' beat one-hot says when a beat is, not when the next comes.
+    (:mod:`stage1_pose.models.beat_clock`): the features' beat one-hot says when a beat is, not when the next comes;
+    ``root_smoothing`` > 0 smooths the root's (MidHip's) output row over a Gaussian of that many frames, in training
+    and generation alike: each frame's root was regressed on its own and jittered, which moved every joint on the
+    canvas, the legs most of all relative to their own motion; ``feature_dropout`` drops that share of the music
+    features' entries in training (never the beat phase), so the LSTM leans on the beat and less on the built-in
+    songs' timbre, which real recordings do not share.
     """
 
     feature_dim: int = 438
@@ -55,6 +61,8 @@ class LSTMConfig:
     windowed_generation: bool = False
     beat_phase_input: bool = False
     stride_frames: int = 0
+    root_smoothing: float = 0.0
+    feature_dropout: float = 0.0
 
     @classmethod
     def preset(cls, name: str) -> "LSTMConfig":
@@ -70,7 +78,7 @@ LSTM_PRESETS: dict[str, LSTMConfig] = {
     # epoch_windows: what one pass over the built-in dataset's 48 training clips of 60 s gives.
     "small": LSTMConfig(hidden=128, layers=2, dropout=0.0, lr=1e-3, batch_size=16, window_frames=90, epochs=60,
                         epoch_windows=912, kinematic_output=True, speed_weight=5.0, windowed_generation=True,
-                        beat_phase_input=True, stride_frames=7),
+                        beat_phase_input=True, stride_frames=7, root_smoothing=2.0, feature_dropout=0.5),
 }
 
 
@@ -94,9 +102,13 @@ class LSTMBaseline(Stage1Method):
         """``[B, T, feature_dim]`` (+ ``[B, T]`` beat flags with ``beat_phase_input``) -> ``[B, T, 25, 2]``; with
         kinematic output, bones of ``lengths`` (``[B, 1, 25]``, default the training data's mean body); ``window`` > 0:
         the LSTM runs on windows of that many frames."""
+        features = F.dropout(features, self.config.feature_dropout, self.training)
         inputs = with_beat_phase(features, beats) if self.beat_phase_input else features
         h = windowed(lambda f: self.lstm(f)[0], (inputs,), window)
         out = self.out(h).reshape(features.shape[0], features.shape[1], NUM_JOINTS, 2)
+        if self.config.root_smoothing:
+            root = smooth_in_time(out[:, :, ROOT], self.config.root_smoothing)
+            out = torch.cat([out[:, :, :ROOT], root[:, :, None], out[:, :, ROOT + 1:]], dim=2)
         return out if self.kinematics is None else self.kinematics(out, lengths)
 
     def configure_optimizers(self) -> dict[str, torch.optim.Optimizer]:

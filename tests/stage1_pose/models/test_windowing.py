@@ -1,8 +1,8 @@
-"""Generation in windows of the training length."""
+"""Generation in windows of the training length; smoothing along time."""
 
 import torch
 
-from stage1_pose.models.windowing import windowed
+from stage1_pose.models.windowing import smooth_in_time, windowed
 
 
 def test_a_long_song_is_encoded_from_windows_of_the_training_length():
@@ -34,3 +34,12 @@ def test_windows_cross_fade_over_an_eighth_of_a_window_also_at_the_songs_end():
         assert junctions >= 1 and int((codes != codes.round()).sum()) == junctions * (window // 8), frames
         assert torch.all(codes.diff() >= 0)
 
+
+def test_smoothing_in_time_keeps_the_mean_and_damps_frame_to_frame_changes():
+    x = torch.randn(2, 50, 3)
+    assert smooth_in_time(x, 0.0) is x
+    smooth = smooth_in_time(x, 2.0)
+    assert smooth.shape == x.shape
+    torch.testing.assert_close(smooth_in_time(torch.full((1, 9, 2), 3.0), 2.0), torch.full((1, 9, 2), 3.0))
+    assert smooth.diff(dim=1).abs().mean() < 0.3 * x.diff(dim=1).abs().mean()
+    assert (smooth.mean(dim=1) - x.mean(dim=1)).abs().max() < 0.1

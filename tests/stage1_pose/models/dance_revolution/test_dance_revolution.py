@@ -12,7 +12,6 @@ from stage1_pose.models.dance_revolution.model import (
     curriculum_p,
     predicted_inputs,
     sinusoidal_encoding,
-    smooth_in_time,
 )
 from stage1_pose.models.kinematics import joint_speeds
 
@@ -175,16 +174,6 @@ def test_code_segments_follow_the_beats():
     assert model.generate(torch.randn(1, 12, 12), beats, torch.Generator().manual_seed(0)).shape == (1, 12, 25, 2)
     with pytest.raises(DancesynthError, match="z_smoothing"):
         dataclasses.replace(TINY, z_smoothing=-1.0)
-
-
-def test_smoothing_in_time_keeps_the_mean_and_damps_frame_to_frame_changes():
-    x = torch.randn(2, 50, 3)
-    assert smooth_in_time(x, 0.0) is x
-    smooth = smooth_in_time(x, 2.0)
-    assert smooth.shape == x.shape
-    torch.testing.assert_close(smooth_in_time(torch.full((1, 9, 2), 3.0), 2.0), torch.full((1, 9, 2), 3.0))
-    assert smooth.diff(dim=1).abs().mean() < 0.3 * x.diff(dim=1).abs().mean()
-    assert (smooth.mean(dim=1) - x.mean(dim=1)).abs().max() < 0.1
 
 
 def test_beat_phase_input_times_the_moves_by_a_new_songs_beats(beat_following_error):

@@ -5,6 +5,7 @@ import torch
 # The machine is shared: one intra-op thread avoids OpenMP contention that makes tiny ops take milliseconds.
 torch.set_num_threads(1)
 
+from dancesynth.core.skeleton import ROOT  # noqa: E402
 from stage1_pose.models.base import Batch  # noqa: E402
 from stage1_pose.models.lstm.model import LSTMBaseline, LSTMConfig  # noqa: E402
 
@@ -39,6 +40,28 @@ def test_a_long_song_is_danced_from_windows_of_the_training_length():
     # fresh state, not from a state carried over the song.
     assert torch.allclose(dance[:, 44:54], model(features[:, 42:58])[:, 2:12], atol=1e-5)
     assert not torch.allclose(dance[:, 44:54], model(features)[:, 44:54], atol=1e-3)
+
+
+def test_root_smoothing_steadies_the_root_and_leaves_the_other_joints():
+    torch.manual_seed(0)
+    free = LSTMBaseline(TINY).eval()
+    smooth = LSTMBaseline(replace(TINY, root_smoothing=2.0)).eval()
+    smooth.load_state_dict(free.state_dict())
+    features, beats = torch.randn(1, 60, 6), torch.zeros(1, 60, dtype=torch.bool)
+    a, b = free.generate(features, beats), smooth.generate(features, beats)
+    def jitter(x):
+        return x[:, :, ROOT].diff(n=2, dim=1).norm(dim=-1).mean()
+    assert jitter(b) < 0.3 * jitter(a)
+    others = [j for j in range(25) if j != ROOT]
+    assert torch.equal(a[:, :, others], b[:, :, others])
+
+
+def test_feature_dropout_acts_in_training_only():
+    model = LSTMBaseline(replace(TINY, feature_dropout=0.5))
+    features, beats = torch.randn(2, 30, 6), torch.zeros(2, 30, dtype=torch.bool)
+    assert not torch.equal(model(features), model(features))
+    model.eval()
+    assert torch.equal(model.generate(features, beats), model.generate(features, beats))
 
 
 
