@@ -49,6 +49,7 @@ from stage1_pose.models.kinematics import (
     joint_lengths,
     speed_loss,
 )
+from stage1_pose.models.windowing import smooth_in_time
 
 POSE_DIM = NUM_JOINTS * 2
 PHASES = ("decomposition", "composition")
@@ -85,6 +86,9 @@ class Dancing2MusicConfig:
     whatever the dataset's size (0: one pass), so the phases, which count epochs, do not shrink with the data.
     ``speed_weight`` (not in the paper) adds an L1 loss between the joint speeds of reconstructed and real units
     (:func:`~stage1_pose.models.kinematics.speed_loss`): the L1 reconstruction alone decodes about half the real motion.
+    ``stage_seconds`` > 0 (not in the paper) keeps a generated dance where it started (:func:`keep_on_stage`): the
+    units are shift-invariant (Eq. 4), so nothing holds the dancer in place, and chained units carried a small
+    sideways step each, which over a 3-minute song walked the dancer 1,243 px across a 1,280-px canvas.
     """
 
     feature_dim: int = 28
@@ -123,6 +127,7 @@ class Dancing2MusicConfig:
     kinematic_output: bool = False
     epoch_windows: int = 0
     speed_weight: float = 0.0
+    stage_seconds: float = 0.0
 
     def __post_init__(self) -> None:
         if not 1 <= self.min_units <= self.max_units:
@@ -136,6 +141,8 @@ class Dancing2MusicConfig:
         if self.composition and self.decomp_epochs >= self.epochs:
             raise DancesynthError(f"decomp_epochs ({self.decomp_epochs}) must be below epochs ({self.epochs}) "
                                   "so the composition phase runs; raise epochs.")
+        if self.stage_seconds < 0:
+            raise DancesynthError(f"stage_seconds must be >= 0 (0: the paper's free root), got {self.stage_seconds}.")
 
     @classmethod
     def preset(cls, name: str) -> "Dancing2MusicConfig":
@@ -152,7 +159,7 @@ _PAPER = Dancing2MusicConfig()
 _SMALL = Dancing2MusicConfig(gru_hidden=128, mlp_hidden=128, z_mov=32, z_dan=32, noise_dim=16, lr=3e-3,
                              batch_size=32, epochs=420, decomp_epochs=180, relative_movement=True, motion_scale=20.0,
                              warp_stretch=2.0, beat_accent=0.3, kinematic_output=True, epoch_windows=288,
-                             speed_weight=5.0)
+                             speed_weight=5.0, stage_seconds=2.0)
 DANCING2MUSIC_PRESETS: dict[str, Dancing2MusicConfig] = {
     "paper": _PAPER,
     "small": _SMALL,
@@ -179,6 +186,17 @@ def shift_root(units: torch.Tensor, shift: torch.Tensor) -> torch.Tensor:
     """
     out = units.clone()
     out[:, :, ROOT] = out[:, :, ROOT] + shift[:, None]
+    return out
+
+
+def keep_on_stage(dance: torch.Tensor, sigma: float) -> torch.Tensor:
+    """``[T, 25, 2]`` model coordinates with the root's slow wandering (its path smoothed over a Gaussian of ``sigma``
+    frames) replaced by where that slow path starts: steps, sways and bounces stay, a walk off the canvas does not.
+    The built-in real dances' roots keep within 12 px (std) of their place; their 2-s slow path within 5 px."""
+    root = dance[:, ROOT]
+    slow = smooth_in_time(root[None], sigma)[0]
+    out = dance.clone()
+    out[:, ROOT] = root - slow + slow[:1]
     return out
 
 
@@ -613,7 +631,9 @@ class Dancing2MusicMethod(Stage1Method):
             if self.config.warp_stretch > 1:
                 moves = kinematic_beats(absolute_positions(units.reshape(-1, NUM_JOINTS, 2)), self.config.fps)
                 unit_beats = du.align_beats(moves, len(grid), self.config.warp_stretch)
-            out.append(self._warp(units, grid, t, unit_beats))
+            dance = self._warp(units, grid, t, unit_beats)
+            out.append(keep_on_stage(dance, self.config.stage_seconds * self.config.fps)
+                       if self.config.stage_seconds > 0 else dance)
         return torch.stack(out).to(features.device)
 
     def _warp(self, units: np.ndarray, grid: np.ndarray, frames: int, unit_beats: np.ndarray | None) -> torch.Tensor:

@@ -14,6 +14,7 @@ from stage1_pose.models.dancing2music.model import (
     Dancing2MusicConfig,
     Dancing2MusicMethod,
     absolute_positions,
+    keep_on_stage,
     shift_root,
     unit_motion,
 )
@@ -122,6 +123,19 @@ def test_shift_moves_only_the_root():
     poses = np.random.default_rng(0).normal(size=(4, 25, 2))
     absolute = absolute_positions(poses)
     np.testing.assert_allclose(absolute[:, 0] - absolute[:, ROOT], poses[:, 0])
+
+
+def test_a_dancer_who_walks_off_keeps_their_place_and_their_steps():
+    t = torch.arange(900, dtype=torch.float32)
+    dance = torch.randn(900, 25, 2) * 0.1
+    step = 0.3 * torch.sin(2 * torch.pi * t / 15)  # a step to the side and back every second
+    dance[:, ROOT, 0] = 0.01 * t + step  # ... while walking 9 torso lengths off in a minute
+    kept = keep_on_stage(dance, sigma=30.0)
+    root = kept[:, ROOT, 0]
+    assert float(root.abs().max()) < 0.6  # within two steps' reach of the start (the walk went 9 away)
+    # The step stays (its swing keeps nearly all of its range), and only the root moves.
+    assert float(root[300:600].max() - root[300:600].min()) > 0.55
+    assert torch.equal(kept[:, :ROOT], dance[:, :ROOT]) and torch.equal(kept[:, ROOT + 1:], dance[:, ROOT + 1:])
 
 
 def test_tiny_du_vae_learns_to_reconstruct_units():
