@@ -17,7 +17,8 @@ from stage1_pose.train import TrainerConfig, epoch_order, rank_batches, train  #
 REPO = Path(__file__).resolve().parents[2]
 TINY_DR = dict(d_model=16, heads=2, d_k=8, d_v=8, d_ff=32, layers=1, window=6, dropout=0.1, lstm_hidden=32,
                window_frames=30, batch_size=4, lam=1.0, q=3, epoch_windows=0)
-TINY_LSTM = dict(hidden=16, layers=2, dropout=0.0, window_frames=30, batch_size=4, epoch_windows=0)
+# No dropout of either kind: its masks are drawn per process, so two processes could not equal one.
+TINY_LSTM = dict(hidden=16, layers=2, dropout=0.0, feature_dropout=0.0, window_frames=30, batch_size=4, epoch_windows=0)
 
 
 def _weights(run: Path) -> dict[str, torch.Tensor]:
