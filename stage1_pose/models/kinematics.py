@@ -11,8 +11,6 @@ generation the training data's mean body, which the layer keeps as a buffer upda
 weights). Normalising makes the output scale-invariant, and with Adam a scale-invariant output's effective step shrinks
 as its raw rows grow (measured: rows 5-50x their bone's length after 60 epochs, and the model stopped learning), so in
 training the layer also charges each raw row's distance from its bone's length (:meth:`KinematicOutput.take_penalty`).
-The torso (MidHip to Neck) and the neck-to-nose bone never point downwards (:data:`UPRIGHT`): the layer mirrors a
-downward direction of theirs upwards, so a dancer can bow and lean but not stand on their head.
 """
 
 from __future__ import annotations
@@ -23,7 +21,7 @@ import torch.distributed as dist
 import torch.nn.functional as F
 from torch import nn
 
-from dancesynth.core.skeleton import BODY25_TREE, JOINT_INDEX, NUM_JOINTS, ROOT
+from dancesynth.core.skeleton import BODY25_TREE, NUM_JOINTS, ROOT
 
 # A direction shorter than this (model units) is too close to zero to trust; it is lengthened before normalising.
 _MIN_NORM = 1e-4
@@ -44,9 +42,6 @@ def _tables() -> tuple[torch.Tensor, torch.Tensor]:
 
 
 PARENT, ANCESTRY = _tables()
-# Bones whose direction keeps a y <= 0 (model coordinates grow downwards, like image rows): torso and neck.
-UPRIGHT = torch.zeros(NUM_JOINTS, dtype=torch.bool)
-UPRIGHT[[JOINT_INDEX["Neck"], JOINT_INDEX["Nose"]]] = True
 
 
 def bone_vectors(poses: torch.Tensor) -> torch.Tensor:
@@ -154,8 +149,6 @@ class KinematicOutput(nn.Module):
         """``[..., 25, 2]`` raw rows -> positions with ``lengths`` (``[..., 25]``, broadcastable; default the mean
         body). In training (with gradients) it also records the rows' length penalty for :meth:`take_penalty`."""
         lengths = self.body if lengths is None else lengths
-        y = raw[..., 1]
-        raw = torch.stack([raw[..., 0], torch.where(UPRIGHT.to(raw.device), -y.abs(), y)], dim=-1)
         if self.training and torch.is_grad_enabled():
             gap = (raw.norm(dim=-1) - lengths).index_fill(-1, torch.tensor([ROOT], device=raw.device), 0.0)
             self._penalties.append(gap.square().mean() * NUM_JOINTS / (NUM_JOINTS - 1))

@@ -36,8 +36,7 @@ class LSTMConfig:
     ``stride_frames`` is the hop between training windows (0: the trainer's default, half a window); ``small``
     starts one every 7 frames, so windows begin at every phase of the beat and the bar: trained on windows that
     began every 45 frames (3 s, on the built-in songs' bars) the LSTM turned the body upside down in 30 % of the
-    frames of windows that began elsewhere, as generation's do (7 frames: 0.6 %; the kinematic output's upright
-    torso now rules it out);
+    frames of windows that began elsewhere, as generation's do (7 frames: 0.6 %; not a guarantee);
     ``beat_phase_input`` appends each frame's phase between two beats to its features
     (:mod:`stage1_pose.models.beat_clock`): the features' beat one-hot says when a beat is, not when the next comes;
     ``root_smoothing`` > 0 smooths the root's (MidHip's) output row over a Gaussian of that many frames, in training
