@@ -37,6 +37,7 @@ from dancesynth.core.motion import (
     mean_jerk,
     mean_speed,
     reference_bone_lengths,
+    upside_down_share,
     velocity_minimum_beats,
 )
 from dancesynth.core.progress import track
@@ -89,7 +90,8 @@ class Contender:
 @dataclass
 class DanceScores:
     """Per-dance quantities the row metrics are aggregated from: classifier output, kinematic beats (frames),
-    ``[T, B]`` relative bone-length errors, mean joint speed (px/s), legs/arms speed ratio and jerk (px/s^3)."""
+    ``[T, B]`` relative bone-length errors, mean joint speed (px/s), legs/arms speed ratio, jerk (px/s^3) and the
+    share of frames upside down."""
 
     predicted: int
     feature: np.ndarray
@@ -100,6 +102,7 @@ class DanceScores:
     speed: float
     legs_arms: float
     jerk: float
+    upside_down: float
 
 
 @dataclass
@@ -135,6 +138,7 @@ COLUMNS: tuple[tuple[str, str, float, int], ...] = (
     ("cross_modal", "Cross-modal dist. ↓", 1.0, 2),
     ("bone_error", "Bone len. err. % ↓", 100.0, 1),
     ("bone_error_p99", "Bone len. err. p99 % ↓", 100.0, 1),
+    ("upside_down", "Upside down % ↓", 100.0, 1),
     ("speed_vs_real", "Speed / real", 1.0, 2),
     ("legs_arms", "Legs/arms speed", 1.0, 2),
     ("jerk", "Jerk px/s³", 1.0, 0),
@@ -257,7 +261,7 @@ def score_dance(dance: PoseSequence, clf: LoadedStyleClassifier) -> DanceScores:
     return DanceScores(pred, feat, windows, np.asarray(kinematic_beats(xy, dance.fps)),
                        np.asarray(velocity_minimum_beats(xy, dance.fps)),
                        bone_length_errors(xy, reference_bone_lengths(xy)), mean_speed(xy, dance.fps),
-                       legs_arms_speed_ratio(xy, dance.fps), mean_jerk(xy, dance.fps))
+                       legs_arms_speed_ratio(xy, dance.fps), mean_jerk(xy, dance.fps), upside_down_share(xy))
 
 
 def _nanmean(values: list[float] | np.ndarray) -> float:
@@ -290,6 +294,7 @@ def trial_metrics(scores: list[DanceScores], songs: list[HeldOutSong], ref: Refe
     out["speed_vs_real"] = float(np.mean([d.speed for d in scores]) / real_speed) if real_speed > 0 else float("nan")
     out["legs_arms"] = _nanmean([d.legs_arms for d in scores])
     out["jerk"] = _nanmean([d.jerk for d in scores])
+    out["upside_down"] = _nanmean([d.upside_down for d in scores])
     for tag in ("d2m", "vmin"):
         kin = [getattr(d, f"{tag}_beats") for d in scores]
         out[f"coverage_{tag}"] = float(np.nanmean([metrics.beat_coverage(k, m) for k, m in zip(kin, music_frames)]))
@@ -378,7 +383,8 @@ def write_report(out_dir: Path, rows: list[RowResult], info: dict) -> None:
             f"±{info['tolerance_frames']} frames. BAS σ = {metrics.DEFAULT_BAS_SIGMA_SECONDS} s. "
             "Multimodality is over seeds for the same song (– where undefined). Bone-length error: |length − the "
             "median length of that bone over the same dance| / that median, mean and 99th percentile over "
-            "frames and bones; speed: mean joint speed / the real dances' on the same songs; legs/arms: mean "
+            "frames and bones; upside down: share of frames with the neck below the mid-hip; speed: mean joint "
+            "speed / the real dances' on the same songs; legs/arms: mean "
             "speed of knees, ankles and feet / of elbows and wrists; jerk: mean |d³x/dt³| of the joints.\n\n"
             "![FID over time](fid_over_time.png)\n\n![Beat alignment](beat_alignment.png)\n")
     with atomic_path(out_dir / "report.md") as tmp:

@@ -107,6 +107,15 @@ def legs_arms_speed_ratio(xy: np.ndarray, fps: float) -> float:
     return float(speeds[:, list(LEG_JOINTS)].mean() / arms) if arms > 0 else float("nan")
 
 
+def upside_down_share(xy: np.ndarray) -> float:
+    """Share of the frames of ``[T, 25, 2]`` image positions (y grows downwards) whose neck is below the mid-hip: a
+    body standing on its head, which no bone-length or speed measure sees; NaN for no frames."""
+    xy = np.asarray(xy)
+    if len(xy) == 0:
+        return float("nan")
+    return float((xy[:, JOINT_INDEX["Neck"], 1] > xy[:, ROOT, 1]).mean())
+
+
 def mean_jerk(xy: np.ndarray, fps: float) -> float:
     """Mean over frames and joints of the magnitude of the third time derivative of ``[T, J, 2]`` positions
     (third finite difference x ``fps**3``), in units per second cubed; NaN for fewer than four frames."""

@@ -25,6 +25,7 @@ from dancesynth.core.motion import (
     motion_histogram,
     reference_bone_lengths,
     speed_by_beat_phase,
+    upside_down_share,
     velocity_minimum_beats,
 )
 from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX, ROOT, normalize
@@ -195,3 +196,12 @@ def test_legs_arms_speed_ratio():
     xy[:, list(LEG_JOINTS), 1] = 1.0 * t
     assert legs_arms_speed_ratio(xy, 15.0) == pytest.approx(0.5)
     assert np.isnan(legs_arms_speed_ratio(np.zeros((20, 25, 2)), 15.0))  # arms still: undefined
+
+
+def test_upside_down_share_counts_frames_with_the_neck_below_the_hip():
+    xy = np.zeros((8, 25, 2))
+    xy[:, JOINT_INDEX["Neck"], 1] = -1.0  # neck above the hip (image y grows downwards)
+    assert upside_down_share(xy) == 0.0
+    xy[:2, JOINT_INDEX["Neck"], 1] = 1.0
+    assert upside_down_share(xy) == pytest.approx(0.25)
+    assert np.isnan(upside_down_share(np.zeros((0, 25, 2))))

@@ -146,7 +146,7 @@ def test_plausibility_columns_in_the_report_with_known_answers_for_the_reference
     _, out, rows, _ = report
     header = (out / "report.md").read_text().splitlines()
     saved = json.loads((out / "report.json").read_text())
-    for key, title, _, _ in COLUMNS[-5:]:
+    for key, title, _, _ in COLUMNS[-6:]:
         assert any(line.startswith("| Method |") and title in line for line in header)
         assert all(key in r["summary"] for r in saved["rows"])
     real, frozen = rows[REAL].summary(), rows[FROZEN].summary()
@@ -155,6 +155,7 @@ def test_plausibility_columns_in_the_report_with_known_answers_for_the_reference
     assert frozen["speed_vs_real"]["mean"] == 0.0 and frozen["jerk"]["mean"] == 0.0
     assert np.isnan(frozen["legs_arms"]["mean"])  # nothing moves: the ratio is undefined
     assert rows[FROZEN].per_trial["bone_error"][0] == pytest.approx(0.0, abs=1e-6)  # one body, held still
+    assert real["upside_down"]["mean"] == 0.0 and frozen["upside_down"]["mean"] == 0.0
 
 
 def test_built_in_real_dances_have_zero_bone_length_error(report):
