@@ -89,7 +89,6 @@ class LSTMBaseline(Stage1Method):
 
     def __init__(self, config: LSTMConfig) -> None:
         super().__init__(config)
-        self.beat_phase_input = config.beat_phase_input
         inputs = config.feature_dim + (2 if config.beat_phase_input else 0)
         self.lstm = nn.LSTM(inputs, config.hidden, num_layers=config.layers, batch_first=True,
                             dropout=config.dropout if config.layers > 1 else 0.0)
@@ -102,7 +101,7 @@ class LSTMBaseline(Stage1Method):
         kinematic output, bones of ``lengths`` (``[B, 1, 25]``, default the training data's mean body); ``window`` > 0:
         the LSTM runs on windows of that many frames."""
         features = F.dropout(features, self.config.feature_dropout, self.training)
-        inputs = with_beat_phase(features, beats) if self.beat_phase_input else features
+        inputs = with_beat_phase(features, beats) if self.config.beat_phase_input else features
         h = windowed(lambda f: self.lstm(f)[0], (inputs,), window)
         out = self.out(h).reshape(features.shape[0], features.shape[1], NUM_JOINTS, 2)
         if self.config.root_smoothing:
