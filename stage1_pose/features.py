@@ -63,6 +63,13 @@ def _recipe(kind: str) -> ModuleType:
     return importlib.import_module(RECIPES[kind])
 
 
+def cache_name(kind: str) -> str:
+    """The folder name of ``kind``'s cached features in a dataset: the kind, with ``-v<N>`` appended when its
+    recipe module's ``VERSION`` is above 1, so features cached by an older recipe are never read by a newer one."""
+    version = getattr(_recipe(kind), "VERSION", 1)
+    return kind if version == 1 else f"{kind}-v{version}"
+
+
 def feature_dim(kind: str, fps: float = 15.0) -> int:
     """Columns of :func:`extract_features` for ``kind`` (the waveform kind depends on ``fps``)."""
     return _recipe(kind).feature_dim(fps)
@@ -97,6 +104,17 @@ def resample_audio(samples: np.ndarray, sr: int, target_sr: int) -> np.ndarray:
     if samples.ndim != 1:
         raise ValueError(f"samples must be mono [N], got shape {samples.shape}")
     return samples if sr == target_sr else librosa.resample(samples, orig_sr=sr, target_sr=target_sr)
+
+
+def level_normalised(samples: np.ndarray, sr: int, seconds: float = 3.0, rms: float = 0.1) -> np.ndarray:
+    """Mono ``[N]`` samples with a slow automatic gain: each sample times ``rms`` over the RMS of the ``seconds``
+    around it (a centred moving window), the gain capped at 100 (+40 dB) so that silence stays quiet. Recordings
+    differ in level by tens of dB between songs and between a song's parts; the built-in songs do not."""
+    from scipy.ndimage import uniform_filter1d
+
+    y = np.asarray(samples, dtype=np.float32)
+    power = uniform_filter1d(y.astype(np.float64) ** 2, max(1, int(round(seconds * sr))), mode="nearest")
+    return (y * np.minimum(rms / np.sqrt(power + 1e-12), 100.0)).astype(np.float32)
 
 
 def analysis_signal(samples: np.ndarray, sr: int) -> np.ndarray:

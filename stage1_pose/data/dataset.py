@@ -9,6 +9,8 @@ Layout of a dataset folder ``DIR``::
     DIR/features/<kind>/<id>.npy cached music features [T, D] (one row per pose frame), made on first use
     DIR/features/<kind>/stats.npz per-column mean and std over the train split
 
+where ``<kind>`` carries the recipe's version (:func:`stage1_pose.features.cache_name`, e.g. ``waveform-v2``).
+
 Each manifest clip is ``{"id", "song", "style", "split", "audio", "poses", "beats"}`` with paths relative to
 ``DIR``. ``split`` is ``train``, ``val`` or ``test`` and is decided per ``song``, so no song is in two splits.
 """
@@ -44,7 +46,7 @@ from stage1_pose.data.layout import (
     write_beats,
     write_manifest,
 )
-from stage1_pose.features import check_kind, extract_features
+from stage1_pose.features import cache_name, check_kind, extract_features
 from stage1_pose.models.base import Batch
 
 __all__ = ["MANIFEST", "SPLITS", "Clip", "DanceDataset", "FeatureStats", "Manifest", "WindowDataset", "clip_paths",
@@ -109,7 +111,7 @@ class DanceDataset:
 
     def feature_path(self, clip: Clip, kind: str) -> Path:
         """Where the cached ``kind`` features of ``clip`` live."""
-        return self.root / "features" / kind / f"{clip.id}.npy"
+        return self.root / "features" / cache_name(kind) / f"{clip.id}.npy"
 
     def ensure_features(self, kind: str, clips: Sequence[Clip] | None = None, progress: bool = True) -> None:
         """Compute and cache the ``kind`` features (:func:`stage1_pose.features.extract_features`) of every clip
@@ -118,7 +120,7 @@ class DanceDataset:
         todo = [c for c in (self._clips if clips is None else clips) if not self.feature_path(c, kind).is_file()]
         if not todo:
             return
-        (self.root / "features" / kind).mkdir(parents=True, exist_ok=True)
+        (self.root / "features" / cache_name(kind)).mkdir(parents=True, exist_ok=True)
         for clip in track(todo, desc=f"features {kind}", unit="clip", disable=not progress):
             feats = extract_features(self.load_audio(clip), self.sample_rate, kind, self.fps)
             with atomic_path(self.feature_path(clip, kind)) as tmp:
@@ -137,7 +139,7 @@ class DanceDataset:
             raise DancesynthError(f"The dataset {self.root} has no training clips, so feature statistics cannot be "
                                   "computed; add clips or re-create it with more `--clips`.")
         key = hashlib.sha1(",".join(sorted(c.id for c in train)).encode()).hexdigest()
-        path = self.root / "features" / kind / "stats.npz"
+        path = self.root / "features" / cache_name(kind) / "stats.npz"
         if path.is_file():
             with np.load(path, allow_pickle=False) as z:
                 if str(z["train_key"]) == key:

@@ -13,7 +13,7 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import PoseSequence
 from stage1_pose.data.dataset import DanceDataset, WindowDataset, collate
 from stage1_pose.data.layout import Clip, clip_paths, create_layout, split_songs, write_beats, write_manifest
-from stage1_pose.features import FEATURE_KINDS, feature_dim
+from stage1_pose.features import FEATURE_KINDS, cache_name, feature_dim
 from stage1_pose.models.base import Batch
 
 SR = 22050
@@ -98,7 +98,7 @@ def test_window_dataset_shapes_for_every_feature_kind(tmp_path, kind):
     assert batch.features.shape == (2, 20, dim) and batch.poses.shape == (2, 20, 25, 2)
     assert batch.beats.shape == (2, 20) and batch.beats.dtype == torch.bool
     assert batch.style.tolist() == [0, 1]
-    assert (tmp_path / "features" / kind / "stats.npz").is_file()
+    assert (tmp_path / "features" / cache_name(kind) / "stats.npz").is_file()
     full = np.concatenate([train.dataset.load_features(c, kind) for c in train.dataset.clips("train")])
     standardized = train.stats.standardize(full)
     assert np.allclose(standardized.mean(0), 0, atol=1e-3)
