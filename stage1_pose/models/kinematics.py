@@ -117,6 +117,16 @@ def motion_statistics_loss(fake: torch.Tensor, real: torch.Tensor) -> torch.Tens
     return loss
 
 
+def mean_raw_rows(poses: torch.Tensor) -> torch.Tensor:
+    """``[B, T, 25, 2]`` real model-coordinate poses -> ``[25, 2]`` their mean :func:`bone_vectors` (the mean root
+    position and mean bone vectors), averaged over every process of a distributed run."""
+    rows = bone_vectors(poses).mean(dim=(0, 1))
+    if dist.is_available() and dist.is_initialized():
+        dist.all_reduce(rows)
+        rows /= dist.get_world_size()
+    return rows
+
+
 class KinematicOutput(nn.Module):
     """Forward kinematics with the training data's mean body for generation (see the module docstring).
 

@@ -19,7 +19,7 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import NUM_JOINTS, ROOT
 from stage1_pose.models.base import Batch, Stage1Method
 from stage1_pose.models.beat_clock import with_beat_phase
-from stage1_pose.models.kinematics import KinematicOutput, speed_loss
+from stage1_pose.models.kinematics import KinematicOutput, mean_raw_rows, speed_loss
 from stage1_pose.models.windowing import smooth_in_time, windowed
 
 
@@ -43,7 +43,11 @@ class LSTMConfig:
     and generation alike: each frame's root was regressed on its own and jittered, which moved every joint on the
     canvas, the legs most of all relative to their own motion; ``feature_dropout`` drops that share of the music
     features' entries in training (never the beat phase): with it, its dances to real recordings, whose timbre the
-    built-in songs do not share, hit the true beats on more songs.
+    built-in songs do not share, hit the true beats on more songs; ``centre_features`` subtracts from the music
+    features their mean over the window the LSTM reads (a training window, or a generation window), so an offset
+    that lasts the window (a recording's timbre, its level) is not heard; ``mean_pose_start`` sets the output
+    layer's bias, before the first training step, to the first batch's mean root position and bone vectors: a
+    kinematic output normalises each bone's direction, and a torso that started pointing down could stay there.
     """
 
     feature_dim: int = 438
@@ -62,6 +66,8 @@ class LSTMConfig:
     stride_frames: int = 0
     root_smoothing: float = 0.0
     feature_dropout: float = 0.0
+    centre_features: bool = False
+    mean_pose_start: bool = False
 
     @classmethod
     def preset(cls, name: str) -> "LSTMConfig":
@@ -77,7 +83,8 @@ LSTM_PRESETS: dict[str, LSTMConfig] = {
     # epoch_windows: what one pass over the built-in dataset's 48 training clips of 60 s gives.
     "small": LSTMConfig(hidden=128, layers=2, dropout=0.0, lr=1e-3, batch_size=16, window_frames=90, epochs=60,
                         epoch_windows=912, kinematic_output=True, speed_weight=5.0, windowed_generation=True,
-                        beat_phase_input=True, stride_frames=7, root_smoothing=2.0, feature_dropout=0.5),
+                        beat_phase_input=True, stride_frames=7, root_smoothing=2.0, feature_dropout=0.5,
+                        centre_features=True, mean_pose_start=True),
 }
 
 
@@ -100,19 +107,30 @@ class LSTMBaseline(Stage1Method):
         """``[B, T, feature_dim]`` (+ ``[B, T]`` beat flags with ``beat_phase_input``) -> ``[B, T, 25, 2]``; with
         kinematic output, bones of ``lengths`` (``[B, 1, 25]``, default the training data's mean body); ``window`` > 0:
         the LSTM runs on windows of that many frames."""
-        features = F.dropout(features, self.config.feature_dropout, self.training)
         inputs = with_beat_phase(features, beats) if self.config.beat_phase_input else features
-        h = windowed(lambda f: self.lstm(f)[0], (inputs,), window)
+        h = windowed(lambda f: self.lstm(self._music_view(f, features.shape[-1]))[0], (inputs,), window)
         out = self.out(h).reshape(features.shape[0], features.shape[1], NUM_JOINTS, 2)
         if self.config.root_smoothing:
             root = smooth_in_time(out[:, :, ROOT], self.config.root_smoothing)
             out = torch.cat([out[:, :, :ROOT], root[:, :, None], out[:, :, ROOT + 1:]], dim=2)
         return out if self.kinematics is None else self.kinematics(out, lengths)
 
+    def _music_view(self, inputs: torch.Tensor, dim: int) -> torch.Tensor:
+        """One window's ``[B, t, dim + extra]`` inputs with its first ``dim`` columns (the music features) centred
+        on the window's mean (``centre_features``) and dropped out in training (``feature_dropout``)."""
+        music = inputs[..., :dim]
+        if self.config.centre_features:
+            music = music - music.mean(dim=1, keepdim=True)
+        music = F.dropout(music, self.config.feature_dropout, self.training)
+        return torch.cat([music, inputs[..., dim:]], dim=-1)
+
     def configure_optimizers(self) -> dict[str, torch.optim.Optimizer]:
         return {"main": torch.optim.Adam(self.parameters(), lr=self.config.lr)}
 
     def training_step(self, batch: Batch, epoch: int) -> dict[str, float]:
+        if self.config.mean_pose_start and self.kinematics is not None and not self.kinematics.seen:
+            with torch.no_grad():
+                self.out.bias.copy_(mean_raw_rows(batch.poses).flatten())
         lengths = None if self.kinematics is None else self.kinematics.observe(batch.poses)
         pred = self(batch.features, lengths, beats=batch.beats)
         l1 = F.l1_loss(pred, batch.poses)

@@ -1,11 +1,14 @@
 from dataclasses import replace
 
+import numpy as np
 import torch
 
 # The machine is shared: one intra-op thread avoids OpenMP contention that makes tiny ops take milliseconds.
 torch.set_num_threads(1)
 
-from dancesynth.core.skeleton import ROOT  # noqa: E402
+from dancesynth.core.skeleton import NECK, ROOT, normalize  # noqa: E402
+from stage1_pose.data.styles import STYLES  # noqa: E402
+from stage1_pose.data.synth_dance import synthesize_dance  # noqa: E402
 from stage1_pose.models.base import Batch  # noqa: E402
 from stage1_pose.models.lstm.model import LSTMBaseline, LSTMConfig  # noqa: E402
 
@@ -63,6 +66,39 @@ def test_feature_dropout_acts_in_training_only():
     model.eval()
     assert torch.equal(model.generate(features, beats), model.generate(features, beats))
 
+
+
+def test_centred_features_ignore_an_offset_within_each_window():
+    # A song's timbre or level offsets every frame's features alike; centred, each window sees only its changes.
+    model = LSTMBaseline(replace(TINY, centre_features=True, windowed_generation=True)).eval()
+    features, beats = torch.randn(1, 60, 6), torch.zeros(1, 60, dtype=torch.bool)
+    offset = torch.randn(1, 1, 6) * 3
+    assert torch.allclose(model.generate(features + offset, beats), model.generate(features, beats), atol=1e-5)
+    plain = LSTMBaseline(TINY).eval()
+    assert not torch.allclose(plain(features + offset), plain(features), atol=1e-3)
+
+
+def upright_dances(clips: int, frames: int) -> torch.Tensor:
+    """``[clips, frames, 25, 2]`` built-in ballet dances in model coordinates."""
+    rng = np.random.default_rng(0)
+    beats = np.arange(0, frames / 15, 0.5)
+    return torch.from_numpy(np.stack([normalize(synthesize_dance(STYLES["ballet"], beats, frames, rng))[0]
+                                      for _ in range(clips)]))
+
+
+def test_mean_pose_start_begins_every_initialisation_upright():
+    # A kinematic output normalises each bone's direction; a torso that starts pointing down can stay there.
+    poses = upright_dances(4, 16)
+    batch = Batch(torch.randn(4, 16, 6), torch.zeros(4, 16, dtype=torch.bool), poses, torch.zeros(4, dtype=torch.long))
+    for seed in range(8):
+        torch.manual_seed(seed)
+        model = LSTMBaseline(replace(TINY, kinematic_output=True, mean_pose_start=True, lr=1e-4))
+        model._optimizers = model.configure_optimizers()
+        model.training_step(batch, 0)
+        dance = model.eval().generate(torch.randn(1, 30, 6), torch.zeros(1, 30, dtype=torch.bool))
+        assert (dance[0, :, NECK, 1] < 0).all()  # the neck above the hip (y grows downwards)
+        torso = dance[0, :, NECK].mean(0)
+        assert torch.cosine_similarity(torso, poses[:, :, NECK].mean((0, 1)), dim=0) > 0.95
 
 
 def beat_one_hot(beats: torch.Tensor) -> torch.Tensor:
