@@ -89,6 +89,9 @@ class Dancing2MusicConfig:
     ``stage_seconds`` > 0 (not in the paper) keeps a generated dance where it started (:func:`keep_on_stage`): the
     units are shift-invariant (Eq. 4), so nothing holds the dancer in place, and chained units carried a small
     sideways step each, which over a 3-minute song walked the dancer 1,243 px across a 1,280-px canvas.
+    ``song_style`` (not in the paper; generation only) gives every group of units the mean of the groups' style
+    features, one style for the whole song: decided group by group, a real song's intro and its rest got different
+    styles, and the intro was danced at about twice the speed of the rest.
     """
 
     feature_dim: int = 28
@@ -128,6 +131,7 @@ class Dancing2MusicConfig:
     epoch_windows: int = 0
     speed_weight: float = 0.0
     stage_seconds: float = 0.0
+    song_style: bool = False
 
     def __post_init__(self) -> None:
         if not 1 <= self.min_units <= self.max_units:
@@ -159,7 +163,7 @@ _PAPER = Dancing2MusicConfig()
 _SMALL = Dancing2MusicConfig(gru_hidden=128, mlp_hidden=128, z_mov=32, z_dan=32, noise_dim=16, lr=3e-3,
                              batch_size=32, epochs=420, decomp_epochs=180, relative_movement=True, motion_scale=20.0,
                              warp_stretch=2.0, beat_accent=0.3, kinematic_output=True, epoch_windows=288,
-                             speed_weight=5.0, stage_seconds=2.0)
+                             speed_weight=5.0, stage_seconds=2.0, song_style=True)
 DANCING2MUSIC_PRESETS: dict[str, Dancing2MusicConfig] = {
     "paper": _PAPER,
     "small": _SMALL,
@@ -557,14 +561,16 @@ class Dancing2MusicMethod(Stage1Method):
         return torch.randn(shape, generator=generator,
                            device=device if generator is None else generator.device).to(device)
 
-    def movement_codes(self, feature_units: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
+    def movement_codes(self, feature_units: torch.Tensor, generator: torch.Generator | None,
+                       style: torch.Tensor | None = None) -> torch.Tensor:
         """Movement codes ``[n, z_mov]`` for ``[n, 32, 28]`` units of a song's features (n <= max_units): z~_dan from
-        their music's style (E_std) decoded by G_dan. The ablation, and a model saved before its composition
-        phase trained (e.g. previews during decomposition), draws them from the DU-VAE prior."""
+        their music's style (E_std; ``style`` ``[1, style_hidden]`` instead of theirs when given) decoded by G_dan.
+        The ablation, and a model saved before its composition phase trained (e.g. previews during decomposition),
+        draws them from the DU-VAE prior."""
         c = self.config
         if not self.composes:
             return self._randn((len(feature_units), c.z_mov), generator)
-        s = self.style_feature(feature_units[None])
+        s = self.style_feature(feature_units[None]) if style is None else style
         return self.g_dan(self.e_std(s, self._randn((1, c.noise_dim), generator)), len(feature_units))[0]
 
     def dance_units(self, feature_units: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
@@ -573,18 +579,23 @@ class Dancing2MusicMethod(Stage1Method):
 
         Units are drawn in groups (max_units composed together, or one at a time from the prior). As in the
         authors' test code, a group whose motion stays below ``redraw_motion`` times the real units' mean motion
-        is drawn again, up to ``redraw_tries`` draws, keeping the liveliest.
+        is drawn again, up to ``redraw_tries`` draws, keeping the liveliest. With ``song_style`` every group's codes
+        come from the mean of all groups' style features.
         """
         c = self.config
         z_ini = self._randn((1, c.z_ini), generator)
         anchor = None
         floor = c.redraw_motion * float(self.unit_motion)
         size = c.max_units if self.composes else 1
+        style = None
+        if c.song_style and self.composes:
+            style = torch.stack([self.style_feature(feature_units[None, start:start + size])
+                                 for start in range(0, len(feature_units), size)]).mean(0)
         groups = []
         for start in range(0, len(feature_units), size):
             best, best_motion = None, -1.0
             for _ in range(c.redraw_tries):
-                codes = self.movement_codes(feature_units[start:start + size], generator)
+                codes = self.movement_codes(feature_units[start:start + size], generator, style)
                 units = self._decode_group(z_ini, anchor, codes)
                 motion = unit_motion(units)
                 if motion > best_motion:

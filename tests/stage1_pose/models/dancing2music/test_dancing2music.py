@@ -173,6 +173,26 @@ def test_generation_length_and_seeds(trained):
     assert torch.isfinite(a).all()
 
 
+def test_one_style_for_the_whole_song(trained):
+    # A real song's intro and its rest, styled group by group, were danced at different speeds.
+    features = np.random.default_rng(3).normal(size=(1, 480, 28)).astype(np.float32)
+    features[:, 240:] = features[:, 240:] * 3 + 2
+    features = torch.from_numpy(features)
+    beats = _beat_flags(480, np.arange(2.0, 480.0, 8.0))
+    styles: list[torch.Tensor] = []
+    hook = trained.e_std.register_forward_hook(lambda module, inputs, output: styles.append(inputs[0].clone()))
+    try:
+        trained.generate(features, beats, torch.Generator().manual_seed(0))
+        per_song, styles[:] = list(styles), []
+        trained.config = replace(trained.config, song_style=False)
+        trained.generate(features, beats, torch.Generator().manual_seed(0))
+    finally:
+        hook.remove()
+        trained.config = replace(trained.config, song_style=True)
+    assert len(per_song) > 1 and all(torch.equal(s, per_song[0]) for s in per_song)
+    assert not all(torch.allclose(s, styles[0]) for s in styles)
+
+
 def test_a_song_without_two_beats_is_refused_with_a_hint(trained):
     with pytest.raises(DancesynthError, match="fewer than two beats"):
         trained.generate(torch.zeros(1, 60, 28), _beat_flags(60, np.array([30.0])), torch.Generator().manual_seed(0))
