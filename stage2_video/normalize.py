@@ -12,6 +12,11 @@ A source whose ankles stay within a quarter of its body height (a dance on the s
 lifts and jumps, not depth) gets one scale and one placement for all frames, at the middle of the target's range,
 and keeps its own up-and-down motion at that scale; mapping its range onto the target's would stretch a 23-px
 foot lift into a 500-px rise.
+
+A range is depth only if the person is taller at its close end, as perspective makes them. A target whose ankle
+range is not (a person on a box top and on the lawn in front of it, taller up on the box; crouching near the
+camera) gets every frame placed where its person usually stands (the median ankle y) at their usual height (the
+median body height), with the source's own up-and-down motion kept at that scale.
 """
 
 from __future__ import annotations
@@ -45,6 +50,8 @@ class BodyStats:
     center_x: float
     width: int
     height: int
+    usual_y: float | None = None
+    usual_height: float | None = None
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -59,8 +66,17 @@ class BodyStats:
 
     @property
     def has_depth(self) -> bool:
-        """Whether the ankle range is depth (the person moves towards and away from the camera), not foot lifts."""
-        return self.spread >= DEPTH_SHARE * (self.far_height + self.close_height) / 2
+        """Whether the ankle range is depth (the person moves towards and away from the camera and is taller when
+        closer), not foot lifts or two ground levels."""
+        wide = self.spread >= DEPTH_SHARE * (self.far_height + self.close_height) / 2
+        return wide and self.close_height > self.far_height
+
+    def typical(self) -> tuple[float, float]:
+        """(ankle y, body height) where the person usually stands: the medians (statistics stored before they were
+        measured: the middle of the ankle range and the mean of its two heights)."""
+        if self.usual_y is None or self.usual_height is None:
+            return (self.far_y + self.close_y) / 2, (self.far_height + self.close_height) / 2
+        return self.usual_y, self.usual_height
 
 
 def _ankle_y(seq: PoseSequence) -> np.ndarray:
@@ -94,7 +110,8 @@ def body_stats(seq: PoseSequence) -> BodyStats:
     close_h = float(np.median(h[a >= close_y - margin]))
     hips = seq.confidence[:, ROOT] >= MIN_CONFIDENCE
     center_x = float(np.median(seq.xy[hips, ROOT, 0])) if hips.any() else seq.width / 2.0
-    return BodyStats(far_y, close_y, far_h, close_h, center_x, seq.width, seq.height)
+    return BodyStats(far_y, close_y, far_h, close_h, center_x, seq.width, seq.height, float(np.median(a)),
+                     float(np.median(h)))
 
 
 @dataclass(frozen=True)
@@ -108,15 +125,21 @@ class PoseNormalizer:
         """A copy of ``seq`` on the target canvas: per frame, scaled about the ankle and translated.
 
         Frames without visible ankles, and every frame of a source without a depth range, use the source's ankle
-        range midpoint.
+        range midpoint; onto a target without a depth range, every frame uses the source's and the target's
+        :meth:`BodyStats.typical` place and height.
         """
         s, t = self.source, self.target
-        middle = (s.far_y + s.close_y) / 2.0
         ankle = _ankle_y(seq)
-        ankle = np.where(np.isfinite(ankle) & s.has_depth, ankle, middle)
-        b = (ankle - s.far_y) / s.spread if s.has_depth else np.full_like(ankle, 0.5)
-        scale = t.far_height / s.far_height + b * (t.close_height / s.close_height - t.far_height / s.far_height)
-        new_ankle = t.far_y + b * t.spread if t.has_depth else np.full_like(b, (t.far_y + t.close_y) / 2)
+        if not t.has_depth:
+            (source_y, source_h), (target_y, target_h) = s.typical(), t.typical()
+            ankle = np.full_like(ankle, source_y)
+            scale, new_ankle = np.full_like(ankle, target_h / source_h), np.full_like(ankle, target_y)
+        else:
+            middle = (s.far_y + s.close_y) / 2.0
+            ankle = np.where(np.isfinite(ankle) & s.has_depth, ankle, middle)
+            b = (ankle - s.far_y) / s.spread if s.has_depth else np.full_like(ankle, 0.5)
+            scale = t.far_height / s.far_height + b * (t.close_height / s.close_height - t.far_height / s.far_height)
+            new_ankle = t.far_y + b * t.spread
         kp = seq.keypoints.astype(np.float64)
         kp[..., 0] = t.center_x + scale[:, None] * (kp[..., 0] - s.center_x)
         kp[..., 1] = new_ankle[:, None] + scale[:, None] * (kp[..., 1] - ankle[:, None])

@@ -74,3 +74,36 @@ def test_a_dance_on_the_spot_keeps_its_foot_lifts_at_body_scale():
     assert np.ptp(height) < 0.05 * np.median(height)
     assert float(np.median(out.xy[:, 11, 1])) == pytest.approx((stats.far_y + stats.close_y) / 2, abs=scale * 12)
 
+
+
+def _person_on_two_levels() -> PoseSequence:
+    """70 frames standing on a box top (ankles at y 400, 300 px tall), then 30 crouching on the ground in front
+    (ankles at y 650, 200 px tall): an ankle range that is not perspective depth."""
+    still = _walking_person().slice_frames(0, 1).keypoints[0]
+    ankle, top = still[[11, 14], 1].mean(), still[:, 1].min()
+    shape = (still[:, :2] - [0.0, ankle]) / (ankle - top)  # ankles at 0, head at -1
+    kp = np.repeat(still[None], 100, axis=0)
+    for frames, ankle_y, height in ((slice(0, 70), 400.0, 300.0), (slice(70, 100), 650.0, 200.0)):
+        kp[frames, :, 0] = 640 + shape[:, 0] * height
+        kp[frames, :, 1] = ankle_y + shape[:, 1] * height
+    return PoseSequence(kp, 15.0, 1280, 720)
+
+
+def test_a_target_on_two_ground_levels_gets_the_dancer_where_it_usually_stands():
+    target = _person_on_two_levels()
+    stats = body_stats(target)
+    assert stats.far_height > stats.close_height and not stats.has_depth
+    dance = _walking_person().slice_frames(0, 1)
+    dance = dance.replace(np.repeat(dance.keypoints, 30, axis=0))
+    out = fit_normalization(dance, stats).apply(dance)
+    ankle = out.xy[:, [11, 14], 1].mean(axis=1)
+    # Before, the dancer stood half-way between the levels (y 525), on neither of them.
+    np.testing.assert_allclose(ankle, 400.0, atol=2.0)
+    np.testing.assert_allclose(ankle - out.xy[:, :, 1].min(axis=1), 300.0, rtol=0.02)
+
+
+def test_statistics_stored_before_the_usual_place_fall_back_to_the_range_middle():
+    stored = body_stats(_person_on_two_levels()).to_dict()
+    del stored["usual_y"], stored["usual_height"]
+    stats = BodyStats.from_dict(stored)
+    assert stats.typical() == ((stats.far_y + stats.close_y) / 2, (stats.far_height + stats.close_height) / 2)
