@@ -9,7 +9,8 @@ is 512 samples (30 analysis frames per second) and every other frame is kept, as
 
 A feature kind's recipe lives in its method's package (``stage1_pose/models/<method>/features.py``) and is
 imported on first use, so this module never imports a model and the models may import these helpers.
-A recipe module defines ``feature_dim(fps) -> int`` and ``extract(samples, sr, fps, beats) -> [T, feature_dim]``.
+A recipe module defines ``feature_dim(fps) -> int`` and ``extract(samples, sr, fps, beats) -> [T, feature_dim]``,
+and ``VERSION`` (an int, default 1) once its output changes (:func:`cache_name`).
 """
 
 from __future__ import annotations
