@@ -129,12 +129,12 @@ class PoseNormalizer:
         :meth:`BodyStats.typical` place and height.
         """
         s, t = self.source, self.target
-        ankle = _ankle_y(seq)
         if not t.has_depth:
             (source_y, source_h), (target_y, target_h) = s.typical(), t.typical()
-            ankle = np.full_like(ankle, source_y)
-            scale, new_ankle = np.full_like(ankle, target_h / source_h), np.full_like(ankle, target_y)
+            frames = len(seq.keypoints)
+            ankle, scale, new_ankle = (np.full(frames, v) for v in (source_y, target_h / source_h, target_y))
         else:
+            ankle = _ankle_y(seq)
             middle = (s.far_y + s.close_y) / 2.0
             ankle = np.where(np.isfinite(ankle) & s.has_depth, ankle, middle)
             b = (ankle - s.far_y) / s.spread if s.has_depth else np.full_like(ankle, 0.5)

@@ -561,17 +561,15 @@ class Dancing2MusicMethod(Stage1Method):
         return torch.randn(shape, generator=generator,
                            device=device if generator is None else generator.device).to(device)
 
-    def movement_codes(self, feature_units: torch.Tensor, generator: torch.Generator | None,
-                       style: torch.Tensor | None = None) -> torch.Tensor:
-        """Movement codes ``[n, z_mov]`` for ``[n, 32, 28]`` units of a song's features (n <= max_units): z~_dan from
-        their music's style (E_std; ``style`` ``[1, style_hidden]`` instead of theirs when given) decoded by G_dan.
-        The ablation, and a model saved before its composition phase trained (e.g. previews during decomposition),
-        draws them from the DU-VAE prior."""
+    def movement_codes(self, count: int, style: torch.Tensor | None,
+                       generator: torch.Generator | None) -> torch.Tensor:
+        """Movement codes ``[count, z_mov]``: z~_dan from a music style feature ``[1, style_hidden]``
+        (:meth:`style_feature`) through E_std, decoded by G_dan; ``style`` None (the ablation, and a model saved
+        before its composition phase trained, e.g. previews during decomposition) draws them from the DU-VAE prior."""
         c = self.config
-        if not self.composes:
-            return self._randn((len(feature_units), c.z_mov), generator)
-        s = self.style_feature(feature_units[None]) if style is None else style
-        return self.g_dan(self.e_std(s, self._randn((1, c.noise_dim), generator)), len(feature_units))[0]
+        if style is None:
+            return self._randn((count, c.z_mov), generator)
+        return self.g_dan(self.e_std(style, self._randn((1, c.noise_dim), generator)), count)[0]
 
     def dance_units(self, feature_units: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
         """Eq. 11: units ``[n, 32, 25, 2]`` for ``[n, 32, 28]`` feature units, decoded one after another; the first
@@ -579,23 +577,25 @@ class Dancing2MusicMethod(Stage1Method):
 
         Units are drawn in groups (max_units composed together, or one at a time from the prior). As in the
         authors' test code, a group whose motion stays below ``redraw_motion`` times the real units' mean motion
-        is drawn again, up to ``redraw_tries`` draws, keeping the liveliest. With ``song_style`` every group's codes
-        come from the mean of all groups' style features.
+        is drawn again, up to ``redraw_tries`` draws, keeping the liveliest. Each group's style feature is read
+        once, from its own units, or with ``song_style`` as the mean of all groups' style features.
         """
         c = self.config
         z_ini = self._randn((1, c.z_ini), generator)
         anchor = None
         floor = c.redraw_motion * float(self.unit_motion)
         size = c.max_units if self.composes else 1
-        style = None
+        starts = range(0, len(feature_units), size)
+        styles = [self.style_feature(feature_units[None, start:start + size]) if self.composes else None
+                  for start in starts]
         if c.song_style and self.composes:
-            style = torch.stack([self.style_feature(feature_units[None, start:start + size])
-                                 for start in range(0, len(feature_units), size)]).mean(0)
+            styles = [torch.stack(styles).mean(0)] * len(styles)
         groups = []
-        for start in range(0, len(feature_units), size):
+        for start, style in zip(starts, styles):
+            count = len(feature_units[start:start + size])
             best, best_motion = None, -1.0
             for _ in range(c.redraw_tries):
-                codes = self.movement_codes(feature_units[start:start + size], generator, style)
+                codes = self.movement_codes(count, style, generator)
                 units = self._decode_group(z_ini, anchor, codes)
                 motion = unit_motion(units)
                 if motion > best_motion:
