@@ -346,7 +346,7 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
         framing = video_framing(seq, config.width, config.height)
         # The plate's crop helped where the scene moves through a following crop and cost a fixed one (docs/methods).
         if isinstance(framing, FollowFraming) and "background" not in (overrides or {}):
-            config = dataclasses.replace(config, background=True)
+            config = dataclasses.replace(config, background=True, blend=True)
     frames = cache_frames(video, framing, run_dir, seq)
     plate = cache_plate(video, seq, run_dir)  # made by rank 0; the other ranks read it after the barrier
     if run.writer:

@@ -36,6 +36,25 @@ def test_generator_and_discriminator_shapes(local, background):
     assert len(temporal) == cfg.num_d
 
 
+@pytest.mark.parametrize("local", [False, True])
+def test_blend_paints_over_the_background_crop(local):
+    cfg = _tiny(local_enhancer=local, background=True, blend=True)
+    model = Pix2PixHD(cfg)
+    label = torch.rand(2, condition_channels(cfg), 32, 32) * 2 - 1
+    plate = label[:, 3:6]
+    # Untrained, the frame is mostly the plate: training starts from the scene, not from noise.
+    assert (model.generate(label) - plate).abs().mean() < 0.3 * plate.abs().mean()
+    head = [m for m in model.generator.modules() if isinstance(m, torch.nn.Conv2d)][-1]
+    with torch.no_grad():
+        head.bias[3] = -30.0  # mask shut: the plate exactly, whatever the skeleton
+    assert torch.allclose(model.generate(label), plate, atol=1e-5)
+
+
+def test_blend_needs_the_background():
+    with pytest.raises(DancesynthError, match="background"):
+        _tiny(blend=True)
+
+
 def test_size_must_divide_by_downsampling():
     with pytest.raises(DancesynthError, match="divisible by 8"):
         preset("small", width=100, height=128)

@@ -122,7 +122,7 @@ def test_a_person_crossing_the_scene_gets_a_following_crop_and_the_background_co
     seq.save(tmp_path / "walk.npz")
     meta = train_video(tmp_path / "walk.mp4", tmp_path / "run", "small", TrainOptions(epochs=1, max_steps=1,
                        val_frames=2), poses=tmp_path / "walk.npz", device="cpu", overrides=tiny_config)
-    assert "follow" in meta["framing"] and meta["config"]["background"]
+    assert "follow" in meta["framing"] and meta["config"]["background"] and meta["config"]["blend"]
 
 
 def test_a_person_dancing_on_the_spot_keeps_the_fixed_crop_without_the_background(tiny_run):
