@@ -52,6 +52,7 @@ from stage2_video.models.pix2pixhd import (
     Pix2PixHD,
     Pix2PixHDConfig,
     feature_matching_loss,
+    foreground_target,
     lsgan_loss,
     preset,
 )
@@ -137,8 +138,8 @@ class VideoTrainer:
         cfg, model = self.config, self.model
         label_p, real_p, label_c, real_c = (x.to(self.device) for x in batch)
         with torch.autocast(self.device.type, dtype=self.precision, enabled=self.precision != torch.float32):
-            fake_p = model.generate(label_p)
-            fake_c = model.generate(label_c, fake_p)
+            fake_p, mask_p = model.generate_layers(label_p)
+            fake_c, mask_c = model.generate_layers(label_c, fake_p)
             labels, reals = torch.cat([label_p, label_c]), torch.cat([real_p, real_c])
             fakes = torch.cat([fake_p, fake_c])
             pairs = [(model.discriminator, torch.cat([labels, reals], 1), torch.cat([labels, fakes], 1))]
@@ -156,7 +157,11 @@ class VideoTrainer:
                 loss_d = loss_d + 0.5 * (lsgan_loss(pred_real, True) + lsgan_loss(disc(fake_in.detach()), False))
             g_vgg = self.vgg(fakes, reals) * cfg.lambda_vgg if self.vgg is not None else g_gan.new_zeros(())
             g_l1 = F.l1_loss(fakes.float(), reals) * cfg.lambda_l1
-            loss_g = g_gan + g_feat + g_vgg + g_l1
+            g_mask = g_l1.new_zeros(())
+            if cfg.blend:
+                target = foreground_target(labels, reals)
+                g_mask = F.l1_loss(torch.cat([mask_p, mask_c]).float(), target) * cfg.lambda_mask
+            loss_g = g_gan + g_feat + g_vgg + g_l1 + g_mask
         self.opt_g.zero_grad(set_to_none=True)
         self.scaler.scale(loss_g).backward()
         self._sync(self.opt_g)
@@ -168,7 +173,7 @@ class VideoTrainer:
         self.scaler.step(self.opt_d)
         self.scaler.update()
         return {"d": loss_d.item(), "g_gan": g_gan.item(), "g_feat": g_feat.item(), "g_vgg": g_vgg.item(),
-                "g_l1": g_l1.item()}
+                "g_l1": g_l1.item(), "g_mask": g_mask.item()}
 
     # --- loop -----------------------------------------------------------------------------------------------
     def fit(self) -> dict:

@@ -42,6 +42,9 @@ class Pix2PixHDConfig:
             background crop through that mask (vid2vid's foreground/background split, Wang et al. 2018), starting
             near the plate; the model then spends its steps on the person, not on copying the scene through the
             bottleneck. Training turns it on together with ``background``.
+        lambda_mask: with ``blend``, L1 weight pulling the mask towards where the real frame differs from the plate
+            near the skeleton (:func:`foreground_target`), so the person comes out opaque rather than a
+            half-transparent average.
         lambda_feat, lambda_vgg: weights of discriminator feature matching and the VGG19 perceptual loss.
         lambda_l1: pixel L1 weight; 0 in the paper. The CPU preset uses it because the VGG loss, which
             supplies pix2pixHD's reconstruction signal, needs ImageNet weights that cannot be downloaded here.
@@ -67,6 +70,7 @@ class Pix2PixHDConfig:
     lambda_feat: float = 10.0
     lambda_vgg: float = 10.0
     lambda_l1: float = 10.0
+    lambda_mask: float = 10.0
     lr: float = 2e-4
     beta1: float = 0.5
     batch_size: int = 4
@@ -250,11 +254,35 @@ class PlateBlend(nn.Module):
         with torch.no_grad():
             last.bias[IMAGE_CHANNELS] = self.START
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def layers(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The composed ``[B, 3, H, W]`` frame and the ``[B, 1, H, W]`` mask in [0, 1] it was composed with."""
         out = self.inner(x)
         plate = x[:, LABEL_CHANNELS:LABEL_CHANNELS + IMAGE_CHANNELS]
         mask = out[:, IMAGE_CHANNELS:].add(1.0).mul(0.5)
-        return plate + mask * (out[:, :IMAGE_CHANNELS] - plate)
+        return plate + mask * (out[:, :IMAGE_CHANNELS] - plate), mask
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.layers(x)[0]
+
+
+# A pixel is foreground where the real frame differs from the plate by this much (0-255 scale: ~25 grey levels)
+# in some channel: above the plate's own error (a median of frames) and the video's noise.
+FOREGROUND_THRESHOLD = 0.2
+# How far from the skeleton's drawn lines the person's body can reach, in model pixels per 128 of frame height.
+FOREGROUND_REACH = 10
+
+
+def foreground_target(condition: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
+    """Where the person is in ``real``: ``[B, 1, H, W]`` in {0, 1}, 1 where the ``[B, 3, H, W]`` real frame differs
+    from the background crop of ``condition`` (label map, background crop; values in [-1, 1]) by more than
+    ``FOREGROUND_THRESHOLD`` and lies within ``FOREGROUND_REACH`` of the drawn skeleton (so the scene's own changes,
+    e.g. leaves moving, do not count)."""
+    plate = condition[:, LABEL_CHANNELS:LABEL_CHANNELS + IMAGE_CHANNELS]
+    differs = (real - plate).abs().amax(1, keepdim=True) > FOREGROUND_THRESHOLD
+    skeleton = (condition[:, :LABEL_CHANNELS] > -1.0).any(1, keepdim=True).float()
+    reach = max(1, round(FOREGROUND_REACH * condition.shape[2] / 128))
+    near = F.max_pool2d(skeleton, 2 * reach + 1, stride=1, padding=reach) > 0
+    return (differs & near).float()
 
 
 def build_generator(config: Pix2PixHDConfig) -> nn.Module:
@@ -287,11 +315,18 @@ class Pix2PixHD(nn.Module):
     def generate(self, label: torch.Tensor, previous: torch.Tensor | None = None) -> torch.Tensor:
         """``[B, C, H, W]`` condition (label map, + background crop; :func:`condition_channels`) and previous
         frame (zeros when None) -> ``[B, 3, H, W]`` frame in [-1, 1]."""
+        return self.generate_layers(label, previous)[0]
+
+    def generate_layers(self, label: torch.Tensor,
+                        previous: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """:meth:`generate`'s frame and, with ``blend``, the ``[B, 1, H, W]`` mask it painted the person through."""
         if self.config.temporal:
             if previous is None:
                 previous = label.new_zeros(label.shape[0], IMAGE_CHANNELS, *label.shape[2:])
             label = torch.cat([label, previous], dim=1)
-        return self.generator(label)
+        if self.config.blend:
+            return self.generator.layers(label)
+        return self.generator(label), None
 
 
 def lsgan_loss(outputs: list[list[torch.Tensor]], target_is_real: bool) -> torch.Tensor:

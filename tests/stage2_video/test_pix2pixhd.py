@@ -7,6 +7,7 @@ from stage2_video.models.pix2pixhd import (
     Pix2PixHD,
     condition_channels,
     feature_matching_loss,
+    foreground_target,
     lsgan_loss,
     preset,
 )
@@ -109,3 +110,17 @@ def test_256_px_where_the_hardware_affords_it(monkeypatch):
         monkeypatch.setattr(pix2pixhd, "cpu_has_amx", lambda amx=amx: amx)
         assert pix2pixhd.affordable_preset(cpu, precision) == expected, (amx, precision)
     assert pix2pixhd.affordable_preset(gpu, torch.float16) == "medium"
+
+
+def test_the_foreground_is_where_the_frame_leaves_the_plate_near_the_skeleton():
+    plate = torch.full((1, 3, 64, 64), -0.5)
+    label = torch.full((1, 3, 64, 64), -1.0)
+    label[0, :, 20:40, 30] = 1.0  # a drawn limb
+    real = plate.clone()
+    real[0, :, 18:42, 27:34] = 0.4  # the person around it
+    real[0, :, 2:6, 2:6] = 0.4  # the scene changes far from the skeleton (a leaf)
+    real[0, :, 50:60, 28:32] -= 0.1  # a change below the threshold (noise, the plate's error)
+    target = foreground_target(torch.cat([label, plate], 1), real)
+    assert target.shape == (1, 1, 64, 64)
+    assert target[0, 0, 18:42, 27:34].all()
+    assert target.sum() == 24 * 7
