@@ -6,7 +6,14 @@ from __future__ import annotations
 import argparse
 from typing import Any, TypeVar
 
-from dancesynth.core.config import apply_overrides, format_config, load_config_file, update_config
+from dancesynth.core.config import (
+    apply_overrides,
+    config_to_dict,
+    format_config,
+    load_config_file,
+    parse_overrides,
+    update_config,
+)
 
 C = TypeVar("C")
 
@@ -27,6 +34,17 @@ def resolve_config(preset: C, args: argparse.Namespace, flags: dict[str, Any] | 
     as --batch-size), then ``args.overrides`` (--set) applied."""
     config = update_config(preset, load_config_file(args.config)) if args.config else preset
     return apply_overrides(update_config(config, flags or {}), args.overrides)
+
+
+def chosen_fields(preset: Any, config: Any, args: argparse.Namespace,
+                  flags: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The fields of :func:`resolve_config`'s ``config`` that the user chose: named in the config file, the
+    command's flags or --set, or differing from ``preset``. The others stay free for a trainer's own choices made
+    from the data (e.g. the appearance model's background condition for a person crossing the scene)."""
+    named = {**(load_config_file(args.config) if args.config else {}), **(flags or {}),
+             **parse_overrides(args.overrides)}
+    defaults = config_to_dict(preset)
+    return {k: v for k, v in config_to_dict(config).items() if k in named or v != defaults.get(k)}
 
 
 def print_config(config: Any, fmt: str) -> None:

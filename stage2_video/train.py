@@ -157,11 +157,11 @@ class VideoTrainer:
                 loss_d = loss_d + 0.5 * (lsgan_loss(pred_real, True) + lsgan_loss(disc(fake_in.detach()), False))
             g_vgg = self.vgg(fakes, reals) * cfg.lambda_vgg if self.vgg is not None else g_gan.new_zeros(())
             g_l1 = F.l1_loss(fakes.float(), reals) * cfg.lambda_l1
-            g_mask = g_l1.new_zeros(())
+            loss_g = g_gan + g_feat + g_vgg + g_l1
             if cfg.blend:
                 target = foreground_target(labels, reals)
                 g_mask = F.l1_loss(torch.cat([mask_p, mask_c]).float(), target) * cfg.lambda_mask
-            loss_g = g_gan + g_feat + g_vgg + g_l1 + g_mask
+                loss_g = loss_g + g_mask
         self.opt_g.zero_grad(set_to_none=True)
         self.scaler.scale(loss_g).backward()
         self._sync(self.opt_g)
@@ -172,8 +172,9 @@ class VideoTrainer:
         self._sync(self.opt_d)
         self.scaler.step(self.opt_d)
         self.scaler.update()
-        return {"d": loss_d.item(), "g_gan": g_gan.item(), "g_feat": g_feat.item(), "g_vgg": g_vgg.item(),
-                "g_l1": g_l1.item(), "g_mask": g_mask.item()}
+        losses = {"d": loss_d.item(), "g_gan": g_gan.item(), "g_feat": g_feat.item(), "g_vgg": g_vgg.item(),
+                  "g_l1": g_l1.item()}
+        return {**losses, "g_mask": g_mask.item()} if cfg.blend else losses
 
     # --- loop -----------------------------------------------------------------------------------------------
     def fit(self) -> dict:
@@ -351,7 +352,7 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
         framing = video_framing(seq, config.width, config.height)
         # The plate's crop helped where the scene moves through a following crop and cost a fixed one (docs/methods).
         if isinstance(framing, FollowFraming) and "background" not in (overrides or {}):
-            config = dataclasses.replace(config, background=True, blend=True)
+            config = dataclasses.replace(config, background=True, blend=(overrides or {}).get("blend", True))
     frames = cache_frames(video, framing, run_dir, seq)
     plate = cache_plate(video, seq, run_dir)  # made by rank 0; the other ranks read it after the barrier
     if run.writer:

@@ -13,8 +13,7 @@ from apps.arguments import (
     positive_float,
     positive_int,
 )
-from apps.config_flags import add_config_arguments, print_config, resolve_config
-from dancesynth.core.config import config_to_dict
+from apps.config_flags import add_config_arguments, chosen_fields, print_config, resolve_config
 from dancesynth.core.errors import DancesynthError
 
 NAME = "train-video"
@@ -94,7 +93,8 @@ def run(args: argparse.Namespace) -> None:
         torch.set_num_threads(args.threads)
     from dancesynth.api import train_video
 
-    meta = train_video(args.video, out=args.out, preset=args.preset, overrides=config_to_dict(config),
+    chosen = chosen_fields(PRESETS[args.preset], config, args, flags)
+    meta = train_video(args.video, out=args.out, preset=args.preset, overrides=chosen,
                        minutes=args.minutes, epochs=args.epochs, resume=args.resume, poses=args.poses,
                        vgg_weights=args.vgg_weights, checkpoint_every=args.checkpoint_every,
                        sample_every=args.sample_every, seed=args.seed, device=args.device,

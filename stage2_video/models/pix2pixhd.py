@@ -166,6 +166,11 @@ class GlobalGenerator(nn.Module):
         self.features = nn.Sequential(*layers)
         self.head = nn.Sequential(*_head(ngf, out_channels))
 
+    @property
+    def output_conv(self) -> nn.Conv2d:
+        """The convolution whose channels are the output's (before tanh)."""
+        return self.head[1]
+
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.head(self.features(x))
 
@@ -183,6 +188,11 @@ class LocalEnhancer(nn.Module):
         self.local_down = nn.Sequential(*_stem(in_channels, ngf), *_down(ngf, ngf * 2))
         self.local_up = nn.Sequential(*[ResnetBlock(ngf * 2) for _ in range(n_blocks_local)], *_up(ngf * 2, ngf),
                                       *_head(ngf, out_channels))
+
+    @property
+    def output_conv(self) -> nn.Conv2d:
+        """The convolution whose channels are the output's (before tanh)."""
+        return self.local_up[-2]
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         half = F.avg_pool2d(x, 3, stride=2, padding=1, count_include_pad=False)
@@ -244,17 +254,17 @@ class PlateBlend(nn.Module):
     ``[B, C, H, W]`` (label map, background crop, ...; :func:`generator_channels`) -> ``[B, 3, H, W]`` in [-1, 1].
     """
 
-    # The mask's initial logit: the first frames are about 88 % plate, and tanh still passes 42 % of the gradient.
+    # The mask channel's initial pre-tanh bias: the first frames are about 88 % plate, and tanh still passes 42 %
+    # of the gradient.
     START = -1.0
 
-    def __init__(self, inner: nn.Module) -> None:
+    def __init__(self, inner: GlobalGenerator | LocalEnhancer) -> None:
         super().__init__()
         self.inner = inner
-        last = [m for m in inner.modules() if isinstance(m, nn.Conv2d)][-1]
         with torch.no_grad():
-            last.bias[IMAGE_CHANNELS] = self.START
+            inner.output_conv.bias[IMAGE_CHANNELS] = self.START
 
-    def layers(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    def frame_and_mask(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The composed ``[B, 3, H, W]`` frame and the ``[B, 1, H, W]`` mask in [0, 1] it was composed with."""
         out = self.inner(x)
         plate = x[:, LABEL_CHANNELS:LABEL_CHANNELS + IMAGE_CHANNELS]
@@ -262,7 +272,7 @@ class PlateBlend(nn.Module):
         return plate + mask * (out[:, :IMAGE_CHANNELS] - plate), mask
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.layers(x)[0]
+        return self.frame_and_mask(x)[0]
 
 
 # A pixel is foreground where the real frame differs from the plate by this much (0-255 scale: ~25 grey levels)
@@ -325,7 +335,7 @@ class Pix2PixHD(nn.Module):
                 previous = label.new_zeros(label.shape[0], IMAGE_CHANNELS, *label.shape[2:])
             label = torch.cat([label, previous], dim=1)
         if self.config.blend:
-            return self.generator.layers(label)
+            return self.generator.frame_and_mask(label)
         return self.generator(label), None
 
 

@@ -36,3 +36,16 @@ def test_bad_setting_is_a_one_line_error(tmp_path, capsys):
     assert "divisible" in capsys.readouterr().err
     assert main([*base, "--set", "ngf"]) == 1
     assert "FIELD=VALUE" in capsys.readouterr().err
+
+
+def test_only_the_settings_the_user_chose_reach_training(tmp_path, monkeypatch):
+    # Unchosen fields stay free for training's own choices (the background condition for a travelling person).
+    seen = {}
+
+    def train_video(video, **kwargs):
+        seen.update(kwargs["overrides"])
+        return {"epoch": 1, "step": 1}
+
+    monkeypatch.setattr("dancesynth.api.train_video", train_video)
+    assert main([*base_args(tmp_path), "--minutes", "1", "--batch-size", "3", "--set", "background=false"]) == 0
+    assert seen == {"batch_size": 3, "background": False}
