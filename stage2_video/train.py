@@ -138,8 +138,8 @@ class VideoTrainer:
         cfg, model = self.config, self.model
         label_p, real_p, label_c, real_c = (x.to(self.device) for x in batch)
         with torch.autocast(self.device.type, dtype=self.precision, enabled=self.precision != torch.float32):
-            fake_p, mask_p = model.generate_layers(label_p)
-            fake_c, mask_c = model.generate_layers(label_c, fake_p)
+            fake_p, mask_p = model.generate_with_mask(label_p)
+            fake_c, mask_c = model.generate_with_mask(label_c, fake_p)
             labels, reals = torch.cat([label_p, label_c]), torch.cat([real_p, real_c])
             fakes = torch.cat([fake_p, fake_c])
             pairs = [(model.discriminator, torch.cat([labels, reals], 1), torch.cat([labels, fakes], 1))]

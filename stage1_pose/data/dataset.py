@@ -109,9 +109,13 @@ class DanceDataset:
         return {"beats": np.asarray(data["beats"], np.float64), "downbeats": np.asarray(data["downbeats"], np.float64),
                 "tempo": float(data["tempo"]), "source": str(data["source"])}
 
+    def feature_dir(self, kind: str) -> Path:
+        """The folder of the cached ``kind`` features and their statistics (named by the recipe's version)."""
+        return self.root / "features" / cache_name(kind)
+
     def feature_path(self, clip: Clip, kind: str) -> Path:
         """Where the cached ``kind`` features of ``clip`` live."""
-        return self.root / "features" / cache_name(kind) / f"{clip.id}.npy"
+        return self.feature_dir(kind) / f"{clip.id}.npy"
 
     def ensure_features(self, kind: str, clips: Sequence[Clip] | None = None, progress: bool = True) -> None:
         """Compute and cache the ``kind`` features (:func:`stage1_pose.features.extract_features`) of every clip
@@ -120,7 +124,7 @@ class DanceDataset:
         todo = [c for c in (self._clips if clips is None else clips) if not self.feature_path(c, kind).is_file()]
         if not todo:
             return
-        (self.root / "features" / cache_name(kind)).mkdir(parents=True, exist_ok=True)
+        self.feature_dir(kind).mkdir(parents=True, exist_ok=True)
         for clip in track(todo, desc=f"features {kind}", unit="clip", disable=not progress):
             feats = extract_features(self.load_audio(clip), self.sample_rate, kind, self.fps)
             with atomic_path(self.feature_path(clip, kind)) as tmp:
@@ -139,7 +143,7 @@ class DanceDataset:
             raise DancesynthError(f"The dataset {self.root} has no training clips, so feature statistics cannot be "
                                   "computed; add clips or re-create it with more `--clips`.")
         key = hashlib.sha1(",".join(sorted(c.id for c in train)).encode()).hexdigest()
-        path = self.root / "features" / cache_name(kind) / "stats.npz"
+        path = self.feature_dir(kind) / "stats.npz"
         if path.is_file():
             with np.load(path, allow_pickle=False) as z:
                 if str(z["train_key"]) == key:

@@ -238,6 +238,11 @@ class MultiscaleDiscriminator(nn.Module):
         return outs
 
 
+def plate_crop(condition: torch.Tensor) -> torch.Tensor:
+    """The background crop ``[B, 3, H, W]`` of a ``[B, C, H, W]`` generator input or condition (label map first)."""
+    return condition[:, LABEL_CHANNELS:LABEL_CHANNELS + IMAGE_CHANNELS]
+
+
 def condition_channels(config: Pix2PixHDConfig) -> int:
     """Channels of what a frame is conditioned on: the label map (+ the background crop)."""
     return LABEL_CHANNELS + (IMAGE_CHANNELS if config.background else 0)
@@ -267,7 +272,7 @@ class PlateBlend(nn.Module):
     def frame_and_mask(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The composed ``[B, 3, H, W]`` frame and the ``[B, 1, H, W]`` mask in [0, 1] it was composed with."""
         out = self.inner(x)
-        plate = x[:, LABEL_CHANNELS:LABEL_CHANNELS + IMAGE_CHANNELS]
+        plate = plate_crop(x)
         mask = out[:, IMAGE_CHANNELS:].add(1.0).mul(0.5)
         return plate + mask * (out[:, :IMAGE_CHANNELS] - plate), mask
 
@@ -287,8 +292,7 @@ def foreground_target(condition: torch.Tensor, real: torch.Tensor) -> torch.Tens
     from the background crop of ``condition`` (label map, background crop; values in [-1, 1]) by more than
     ``FOREGROUND_THRESHOLD`` and lies within ``FOREGROUND_REACH`` of the drawn skeleton (so the scene's own changes,
     e.g. leaves moving, do not count)."""
-    plate = condition[:, LABEL_CHANNELS:LABEL_CHANNELS + IMAGE_CHANNELS]
-    differs = (real - plate).abs().amax(1, keepdim=True) > FOREGROUND_THRESHOLD
+    differs = (real - plate_crop(condition)).abs().amax(1, keepdim=True) > FOREGROUND_THRESHOLD
     skeleton = (condition[:, :LABEL_CHANNELS] > -1.0).any(1, keepdim=True).float()
     reach = max(1, round(FOREGROUND_REACH * condition.shape[2] / 128))
     near = F.max_pool2d(skeleton, 2 * reach + 1, stride=1, padding=reach) > 0
@@ -325,9 +329,9 @@ class Pix2PixHD(nn.Module):
     def generate(self, label: torch.Tensor, previous: torch.Tensor | None = None) -> torch.Tensor:
         """``[B, C, H, W]`` condition (label map, + background crop; :func:`condition_channels`) and previous
         frame (zeros when None) -> ``[B, 3, H, W]`` frame in [-1, 1]."""
-        return self.generate_layers(label, previous)[0]
+        return self.generate_with_mask(label, previous)[0]
 
-    def generate_layers(self, label: torch.Tensor,
+    def generate_with_mask(self, label: torch.Tensor,
                         previous: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor | None]:
         """:meth:`generate`'s frame and, with ``blend``, the ``[B, 1, H, W]`` mask it painted the person through."""
         if self.config.temporal:
