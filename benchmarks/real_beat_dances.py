@@ -19,6 +19,11 @@ half, issue 25 for 0.6-1.5x), and the legs/arms speed ratio next to the real dan
 
 ``--long S`` adds the slow-down check on long songs: the benchmark's pieces stop at 120 s, so it dances the first S
 seconds of every Frets-on-Fire recording (the packages' full ``song.ogg``) that lasts at least S.
+
+Each model gets two rows by default: ``raw``, the method's own timing (what ``dancesynth evaluate`` scores), and
+``snap``, the dance retimed onto the tracked beats (:mod:`stage1_pose.beat_snap`), as ``dancesynth dance`` and
+``generate`` make it; ``--snap raw`` or ``--snap snap`` keeps one. ``jerk`` is the mean |d³x/dt³| of the joints
+(px/s³), to see what the retiming costs in smoothness.
 """
 
 from __future__ import annotations
@@ -36,9 +41,11 @@ from dancesynth.core.motion import (
     chance_hit_rate,
     kinematic_beats,
     legs_arms_speed_ratio,
+    mean_jerk,
     mean_speed,
     velocity_minimum_beats,
 )
+from stage1_pose.beat_snap import DEFAULT_SNAP, BeatSnap
 from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.evaluate import row_names
 from stage1_pose.generate import generate_dance, load_pose_model
@@ -48,6 +55,7 @@ DEFINITIONS = {"vmin": velocity_minimum_beats, "d2m": kinematic_beats}
 # Speed windows at the start and end of the dance, seconds.
 SPEED_WINDOW = 10.0
 GOAL_MARGIN = 0.10
+TIMINGS = {"raw": None, "snap": DEFAULT_SNAP}
 
 
 def _song_scores(xy: np.ndarray, fps: float, beats: np.ndarray, rng: np.random.Generator) -> dict[str, float]:
@@ -63,6 +71,7 @@ def _song_scores(xy: np.ndarray, fps: float, beats: np.ndarray, rng: np.random.G
     out["end_over_start"] = mean_speed(xy[-window:], fps) / mean_speed(xy[:window], fps)
     out["speed"], out["end_speed"] = mean_speed(xy, fps), mean_speed(xy[-window:], fps)
     out["legs_arms"] = legs_arms_speed_ratio(xy, fps)
+    out["jerk"] = mean_jerk(xy, fps)
     return out
 
 
@@ -84,24 +93,24 @@ def long_songs(cache: Path, seconds: float) -> list[tuple[str, np.ndarray]]:
     return songs
 
 
-def slow_down_table(models: list[tuple[str, Path]], songs: list[tuple[str, np.ndarray]], seeds: list[int],
-                    real_speed: float | None) -> None:
-    """Per (row name, run folder): last 10 s over first 10 s of the dances to ``songs`` (mean, min), and the last
-    10 s over the real built-in dances' speed (min) when ``real_speed`` is given."""
+def slow_down_table(models: list[tuple[str, Path, BeatSnap | None]], songs: list[tuple[str, np.ndarray]],
+                    seeds: list[int], real_speed: float | None) -> None:
+    """Per (row name, run folder, retiming): last 10 s over first 10 s of the dances to ``songs`` (mean, min), and
+    the last 10 s over the real built-in dances' speed (min) when ``real_speed`` is given."""
     print(f"\nslow-down on {len(songs)} long songs x {len(songs[0][1]) / SR:.0f} s, seeds {seeds}")
-    print(f"{'model':16s} {'end/start mean (min)':>21s} {'last 10 s/real min':>19s}")
-    for name, run in models:
+    print(f"{'model':22s} {'end/start mean (min)':>21s} {'last 10 s/real min':>19s}")
+    for name, run, snap in models:
         model = load_pose_model(run, device="cpu")
         window = int(round(SPEED_WINDOW * model.fps))
         ratios, ends = [], []
         for _, y in songs:
             for seed in seeds:
-                xy = generate_dance(model, y, SR, seed).keypoints[..., :2]
+                xy = generate_dance(model, y, SR, seed, snap).keypoints[..., :2]
                 ratios.append(mean_speed(xy[-window:], model.fps) / mean_speed(xy[:window], model.fps))
                 ends.append(mean_speed(xy[-window:], model.fps))
         ratio = np.array(ratios)
         end = f"{min(ends) / real_speed:19.2f}" if real_speed else f"{'-':>19s}"
-        print(f"{name:16s} {ratio.mean():12.2f} ({ratio.min():.2f}) {end}", flush=True)
+        print(f"{name:22s} {ratio.mean():12.2f} ({ratio.min():.2f}) {end}", flush=True)
 
 
 def main() -> None:
@@ -113,6 +122,8 @@ def main() -> None:
     parser.add_argument("--per-song", action="store_true", help="print one row per model and song")
     parser.add_argument("--data", type=Path, help="the built-in dataset the models trained on: speeds vs its dances")
     parser.add_argument("--long", type=float, metavar="S", help="also dance S seconds of the long recordings")
+    parser.add_argument("--snap", choices=("both", *TIMINGS), default="both",
+                        help="rows for the methods' own timing (raw), the retimed dances (snap) or both")
     args = parser.parse_args()
     assert SR == SONG_SAMPLE_RATE, "the benchmark cache must hold songs at the project's song sample rate"
     infos = [json.loads(p.read_text()) for p in sorted((args.cache / "audio").glob("*.json"))]
@@ -122,28 +133,30 @@ def main() -> None:
     rng = np.random.default_rng(0)
     summary = {}
     if args.per_song:
-        print(f"{'model':16s} {'song':28s} {'bpm':>4s}  vmin hit/chance+-2  d2m hit/chance+-2  end/start")
-    runs = list(zip(row_names([str(m) for m in args.models], set()), args.models))
-    for name, run in runs:
+        print(f"{'model':22s} {'song':28s} {'bpm':>4s}  vmin hit/chance+-2  d2m hit/chance+-2  end/start")
+    timings = list(TIMINGS) if args.snap == "both" else [args.snap]
+    runs = [(f"{name} {timing}", run, TIMINGS[timing])
+            for name, run in zip(row_names([str(m) for m in args.models], set()), args.models) for timing in timings]
+    for name, run, snap in runs:
         model = load_pose_model(run, device="cpu")
         rows = []
         for info, y in songs:
             beats = np.asarray(info["beats"], np.float64)
             beats = beats[beats < len(y) / SR]
-            per_seed = [_song_scores(generate_dance(model, y, SR, seed).keypoints[..., :2], model.fps, beats, rng)
-                        for seed in args.seeds]
+            per_seed = [_song_scores(generate_dance(model, y, SR, seed, snap).keypoints[..., :2], model.fps, beats,
+                                     rng) for seed in args.seeds]
             row = {k: float(np.nanmean([s[k] for s in per_seed])) for k in per_seed[0]}
             rows.append(row)
             if args.per_song:
-                print(f"{name:16s} {info['id']:28s} {info['bpm']:4.0f}  "
+                print(f"{name:22s} {info['id']:28s} {info['bpm']:4.0f}  "
                       f"{row['vmin_hit2']:8.2f}/{row['vmin_chance2']:.2f}  "
                       f"{row['d2m_hit2']:8.2f}/{row['d2m_chance2']:.2f}  {row['end_over_start']:9.2f}", flush=True)
         summary[name] = rows
     shortest = min(len(y) for _, y in songs) / SR
     print(f"\n{len(songs)} songs x {args.seconds:.0f} s (shortest {shortest:.0f} s), seeds {args.seeds}; per song the "
           "seeds are averaged")
-    print(f"{'model':16s} {'beats':5s} " + " ".join(f"{'hit+-' + str(t):>7s} {'chance':>6s} {'>=+0.10':>7s}"
-                                                    for t in TOLERANCES) + "  end/start mean (min)")
+    print(f"{'model':22s} {'beats':5s} " + " ".join(f"{'hit+-' + str(t):>7s} {'chance':>6s} {'>=+0.10':>7s}"
+                                                    for t in TOLERANCES) + "  end/start mean (min)  jerk")
     for name, rows in summary.items():
         for i, definition in enumerate(DEFINITIONS):
             cells = []
@@ -153,18 +166,19 @@ def main() -> None:
                 cells.append(f"{np.nanmean(hit):7.3f} {np.nanmean(chance):6.3f} "
                              f"{np.mean(hit >= chance + GOAL_MARGIN):7.0%}")
             speed = np.array([r["end_over_start"] for r in rows])
-            tail = f"  {speed.mean():.2f} ({speed.min():.2f})" if i == 0 else ""
-            print(f"{name:16s} {definition:5s} " + " ".join(cells) + tail)
+            jerk = np.mean([r["jerk"] for r in rows])
+            tail = f"  {speed.mean():.2f} ({speed.min():.2f}) {jerk:13,.0f}" if i == 0 else ""
+            print(f"{name:22s} {definition:5s} " + " ".join(cells) + tail)
     real_speed = None
     if args.data is not None:
         real_speed, real_legs = real_motion(args.data)
         print(f"\nreal built-in dances: {real_speed:.1f} px/s, legs/arms {real_legs:.2f}")
-        print(f"{'model':16s} {'speed/real mean (min-max)':>26s} {'last 10 s/real min':>19s} {'legs/arms':>10s}")
+        print(f"{'model':22s} {'speed/real mean (min-max)':>26s} {'last 10 s/real min':>19s} {'legs/arms':>10s}")
         for name, rows in summary.items():
             speed = np.array([r["speed"] for r in rows]) / real_speed
             end = np.array([r["end_speed"] for r in rows]) / real_speed
             legs = np.nanmean([r["legs_arms"] for r in rows])
-            print(f"{name:16s} {speed.mean():12.2f} ({speed.min():.2f}-{speed.max():.2f}) {end.min():19.2f} "
+            print(f"{name:22s} {speed.mean():12.2f} ({speed.min():.2f}-{speed.max():.2f}) {end.min():19.2f} "
                   f"{legs:10.2f}")
     if args.long:
         slow_down_table(runs, long_songs(args.cache, args.long), args.seeds, real_speed)

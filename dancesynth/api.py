@@ -29,7 +29,7 @@ def dance(song: PathLike, *, out: PathLike, target: PathLike | None = None, vide
           preset: str | None = None, method: str | None = None, seed: int = 0, start: float = 0.0,
           duration: float | None = None, height: int | None = None, crop: bool = False,
           skeleton_preview: PathLike | None = None, side_by_side: PathLike | None = None,
-          precision: str = "auto", device: str = "auto") -> DanceResult:
+          beat_snap: bool = True, precision: str = "auto", device: str = "auto") -> DanceResult:
     """Make ``out`` (mp4): the person of ``target`` (a video) or ``video_model`` dancing to ``song``, in their
     own scene at its resolution, with the song as its sound.
 
@@ -50,6 +50,8 @@ def dance(song: PathLike, *, out: PathLike, target: PathLike | None = None, vide
         crop: write the model's crop around the person instead of the whole scene.
         skeleton_preview: also write the skeleton as an mp4 (same size).
         side_by_side: also write skeleton | generated person as an mp4.
+        beat_snap: retime the dance so that its movement beats land on the song's beats (False: the pose
+            model's own timing).
         precision: appearance-model arithmetic: ``auto`` (bf16 on CPUs with AMX/AVX-512-BF16 and GPUs),
             ``fp32`` or ``bf16``.
         device: ``auto`` (GPU when available), ``cpu`` or ``cuda``.
@@ -63,11 +65,12 @@ def dance(song: PathLike, *, out: PathLike, target: PathLike | None = None, vide
     return make_dance(song, out, pose_model=pose_model, video_model=video_model, target=target, cache=cache,
                       train_minutes=train_minutes, preset=preset, method=method, seed=seed, start=start,
                       duration=duration, skeleton_preview=skeleton_preview, side_by_side=side_by_side, crop=crop,
-                      height=height, precision=precision, device=device)
+                      height=height, beat_snap=beat_snap, precision=precision, device=device)
 
 
 def generate(song: PathLike, *, model: PathLike | None = None, out: PathLike | None = None, seed: int = 0,
-             preview: PathLike | None = None, precision: str = "auto", device: str = "auto") -> PoseSequence:
+             preview: PathLike | None = None, beat_snap: bool = True, precision: str = "auto",
+             device: str = "auto") -> PoseSequence:
     """A dance for ``song`` (any length) from the stage-1 run folder ``model`` (None = the pose model shipped
     with dancesynth).
 
@@ -76,18 +79,21 @@ def generate(song: PathLike, *, model: PathLike | None = None, out: PathLike | N
             confidence 1; fps, width, height); ``T`` = song length in seconds x the model's fps.
         seed: another seed gives another dance (for stochastic methods).
         preview: also write a skeleton mp4 with the song as its sound.
+        beat_snap: retime the dance so that its movement beats land on the song's beats (False: the model's
+            own timing).
         precision: ``int8`` decodes about 3x faster on CPU; ``auto`` = int8 on CPU, fp32 on GPU.
         device: ``auto``, ``cpu`` or ``cuda``.
     """
     from dancesynth.core.draw import write_skeleton_video
     from dancesynth.core.fileio import atomic_path
     from dancesynth.core.media import SONG_SAMPLE_RATE, load_song
+    from stage1_pose.beat_snap import DEFAULT_SNAP
     from stage1_pose.generate import generate_dance, load_pose_model
     from stage1_pose.pretrained import DEFAULT_POSE_MODEL
 
     loaded = load_pose_model(DEFAULT_POSE_MODEL if model is None else model, device, precision)
     samples = load_song(song, SONG_SAMPLE_RATE)
-    poses = generate_dance(loaded, samples, SONG_SAMPLE_RATE, seed=seed)
+    poses = generate_dance(loaded, samples, SONG_SAMPLE_RATE, seed=seed, snap=DEFAULT_SNAP if beat_snap else None)
     # Both outputs are renamed into place only once both are complete, so a failure leaves neither.
     with contextlib.ExitStack() as outputs:
         if out is not None:

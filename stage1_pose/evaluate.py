@@ -208,27 +208,30 @@ def baseline_contenders(songs: list[HeldOutSong], ref: Reference) -> list[Conten
 
 
 def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[HeldOutSong], device: str,
-                    name: str) -> Contender:
+                    name: str, beat_snap: bool = False) -> Contender:
     """The row ``name`` (see :func:`row_names`), generating with the stage-1 model saved in ``run_dir``.
 
     When the model runs at the dataset's frame rate, its input features come from the dataset's feature cache
     (computed once per song, cut to the song's frames) instead of being extracted again for every seed, with
-    the dataset's beats of the song; otherwise features and beats come from the song's samples.
+    the dataset's beats of the song; otherwise features and beats come from the song's samples. ``beat_snap``
+    scores the dances retimed onto the beats as ``dancesynth dance`` makes them, instead of the method's own.
     """
+    from stage1_pose.beat_snap import DEFAULT_SNAP
     from stage1_pose.generate import generate_dance, generate_from_features, load_pose_model
 
     model = load_pose_model(run_dir, device)
     clips = {c.id: c for c in ds.clips()}
     cached = model.fps == ds.fps
+    snap = DEFAULT_SNAP if beat_snap else None
 
     def make(i: int, seed: int) -> PoseSequence:
         song = songs[i]
         if cached:
             features = np.asarray(ds.load_features(clips[song.id], model.feature_kind)[: len(song.real)])
-            dance = generate_from_features(model, features, song.beats, seed=seed)
+            dance = generate_from_features(model, features, song.beats, seed=seed, snap=snap)
         else:
             # Beat and window metrics count frames, so every row is judged at the dataset's frame rate.
-            dance = resample(generate_dance(model, song.samples, song.sr, seed=seed), song.real.fps)
+            dance = resample(generate_dance(model, song.samples, song.sr, seed=seed, snap=snap), song.real.fps)
         return fit_length(dance, len(song.real))
 
     return Contender(name, make)
@@ -404,6 +407,7 @@ class EvaluationOptions:
     video_seconds: float = 10.0
     plot_seconds: float = 12.0
     grid_video: bool = False
+    beat_snap: bool = False
 
 
 def obtain_classifier(ds: DanceDataset, options: EvaluationOptions) -> tuple[LoadedStyleClassifier, str]:
@@ -471,7 +475,7 @@ def run_evaluation(data_dir: str | os.PathLike, model_dirs: list[str], out_dir: 
     songs = load_songs(ds, options.seconds)
     ref = load_reference(ds, clf)
     baselines = baseline_contenders(songs, ref)
-    models = [model_contender(m, ds, songs, options.device, name)
+    models = [model_contender(m, ds, songs, options.device, name, options.beat_snap)
               for m, name in zip(model_dirs, row_names(model_dirs, {c.name for c in baselines}))]
     contenders = baselines + models
     samples: dict[str, PoseSequence] = {}

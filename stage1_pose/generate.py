@@ -21,6 +21,7 @@ from dancesynth.core.config import config_from_dict
 from dancesynth.core.device import resolve_device
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import NormParams, PoseSequence, denormalize
+from stage1_pose.beat_snap import DEFAULT_SNAP, BeatSnap, snap_to_beats
 from stage1_pose.beats import beat_times, beats_on_frames
 from stage1_pose.features import extract_features
 from stage1_pose.models.base import Stage1Method
@@ -81,11 +82,13 @@ def load_pose_model(run_dir: str | os.PathLike, device: str = "auto", precision:
 
 
 def generate_from_features(model: LoadedPoseModel, features: np.ndarray, beats: np.ndarray,
-                           seed: int = 0) -> PoseSequence:
+                           seed: int = 0, snap: BeatSnap | None = None) -> PoseSequence:
     """``[T, D]`` raw (unstandardised) features of ``model.feature_kind`` and the song's ``beats`` (``[K]`` times
     in seconds) -> a T-frame dance in pixels.
 
-    The same ``seed`` gives the same dance; stochastic methods give another dance for another seed.
+    The same ``seed`` gives the same dance; stochastic methods give another dance for another seed. ``snap``
+    retimes the dance so that its movement beats land on ``beats`` (:mod:`stage1_pose.beat_snap`); None gives the
+    method's own output.
     """
     stats = model.meta["feature_stats"]
     mean, std = np.asarray(stats["mean"], np.float32), np.asarray(stats["std"], np.float32)
@@ -97,13 +100,18 @@ def generate_from_features(model: LoadedPoseModel, features: np.ndarray, beats: 
     model.method.eval()
     with torch.no_grad():
         poses = model.method.generate(x, on_beat, torch.Generator().manual_seed(int(seed)))
-    return denormalize(poses[0].float().cpu().numpy(), model.norm_params())
+    dance = poses[0].float().cpu().numpy()
+    if snap is not None:
+        dance = snap_to_beats(dance, np.asarray(beats, np.float64) * model.fps, model.fps, snap)
+    return denormalize(dance, model.norm_params())
 
 
-def generate_dance(model: LoadedPoseModel, samples: np.ndarray, sr: int, seed: int = 0) -> PoseSequence:
+def generate_dance(model: LoadedPoseModel, samples: np.ndarray, sr: int, seed: int = 0,
+                   snap: BeatSnap | None = DEFAULT_SNAP) -> PoseSequence:
     """Mono ``samples`` at ``sr`` Hz -> a dance of :func:`stage1_pose.features.num_pose_frames` frames at the
-    model's fps, in pixels of the training canvas (confidence 1); the song's beats come from the beat tracker."""
+    model's fps, in pixels of the training canvas (confidence 1); the song's beats come from the beat tracker.
+    By default the dance is retimed onto them (``snap``, see :func:`generate_from_features`)."""
     samples = np.asarray(samples, np.float32)
     beats = beat_times(samples, sr)
     features = extract_features(samples, sr, model.feature_kind, model.fps, beats)
-    return generate_from_features(model, features, beats, seed)
+    return generate_from_features(model, features, beats, seed, snap)

@@ -77,6 +77,9 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--side-by-side", type=output_file, default=None, metavar="PATH",
                    help="also write skeleton | generated person side by side")
     add_precision_argument(p, "the appearance model's training (with --target) and rendering")
+    p.add_argument("--no-beat-snap", dest="beat_snap", action="store_false",
+                   help="keep the pose model's own timing instead of retiming its movement beats onto the "
+                        "song's beats")
     p.add_argument("--device", default="auto", help="auto (GPU when available), cpu or cuda (default auto)")
 
 
@@ -88,6 +91,6 @@ def run(args: argparse.Namespace) -> None:
                    preset=args.preset, method=args.method, seed=args.seed, start=args.start,
                    duration=args.duration, height=args.height, crop=args.crop,
                    skeleton_preview=args.skeleton_preview, side_by_side=args.side_by_side,
-                   precision=args.precision, device=args.device)
+                   beat_snap=args.beat_snap, precision=args.precision, device=args.device)
     logger.info(f"{len(result.poses)} frames at {result.poses.fps:g} fps with the appearance model "
                 f"{result.video_model}; wrote " + ", ".join(map(str, result.written)))

@@ -49,6 +49,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--video-seconds", type=positive_float, help="length of the sample videos (default 10 s)")
     parser.add_argument("--grid-video", action="store_true",
                         help="also write grid.mp4: every row side by side on the first test song, beats flashing")
+    parser.add_argument("--beat-snap", action="store_true", default=None,
+                        help="score the models' dances retimed onto the song's beats, as `dance` and `generate` "
+                             "make them (default: each method's own timing, as the papers score it)")
     parser.add_argument("--device", help="auto, cpu or cuda (default auto)")
 
 
@@ -56,7 +59,7 @@ def run(args: argparse.Namespace) -> None:
     from stage1_pose.evaluate import EvaluationOptions, markdown_table, run_evaluation
 
     names = ("trials", "seconds", "device", "classifier", "classifier_preset", "tolerance_frames", "video_seconds",
-             "grid_video")
+             "grid_video", "beat_snap")
     options = EvaluationOptions(**{k: getattr(args, k) for k in names if getattr(args, k) is not None})
     rows = run_evaluation(args.data, args.models, args.out, options)
     logger.info(markdown_table(rows))

@@ -36,6 +36,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also write a skeleton preview video with the song")
     parser.add_argument("--precision", default="auto", choices=("auto", "fp32", "int8"),
                         help="decoder weights: int8 is ~3x faster on CPU; auto = int8 on CPU, fp32 on GPU")
+    parser.add_argument("--no-beat-snap", dest="beat_snap", action="store_false",
+                        help="keep the pose model's own timing instead of retiming its movement beats onto the "
+                             "song's beats")
     parser.add_argument("--device", default="auto", help="auto, cpu or cuda")
 
 
@@ -43,6 +46,6 @@ def run(args: argparse.Namespace) -> None:
     from dancesynth.api import generate
 
     seq = generate(args.song, model=args.model, out=args.out, seed=args.seed, preview=args.preview,
-                   precision=args.precision, device=args.device)
+                   beat_snap=args.beat_snap, precision=args.precision, device=args.device)
     logger.info(f"wrote {args.out}: {len(seq)} frames at {seq.fps:g} fps ({seq.duration:.1f} s), "
                 f"{seq.width}x{seq.height} canvas" + (f"; preview {args.preview}" if args.preview else ""))

@@ -1,11 +1,22 @@
 """The pose model shipped in the package: small enough to ship, and it dances a song it never heard."""
 
+import json
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 from dancesynth.core.media import SONG_SAMPLE_RATE, load_song
-from dancesynth.core.motion import bone_length_errors, mean_speed, reference_bone_lengths
+from dancesynth.core.motion import (
+    beats_aligned,
+    bone_length_errors,
+    chance_hit_rate,
+    mean_speed,
+    reference_bone_lengths,
+    velocity_minimum_beats,
+)
 from dancesynth.core.skeleton import body_scale
+from stage1_pose.beat_snap import BeatSnap
 from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.data.make_dataset import make_dataset
 from stage1_pose.generate import generate_dance, load_pose_model
@@ -43,3 +54,20 @@ def test_shipped_model_dances_an_unheard_song_to_its_end_without_freezing(tmp_pa
     # joints by forward kinematics; Dance Revolution's paper output drifted 49 % at the 99th percentile).
     errors = bone_length_errors(dance.xy, reference_bone_lengths(dance.xy))
     assert np.nanpercentile(errors, 99) <= 0.05
+
+
+def test_shipped_model_dances_on_the_true_beats_of_a_real_recording():
+    # Rock at 135 BPM, beats from its Frets-on-Fire chart; generation tracks its own beats and retimes onto them.
+    song = Path(__file__).parents[1] / "data" / "real_song" / "escape_from_chaosland_40-65s"
+    samples = load_song(song.with_suffix(".ogg"), SONG_SAMPLE_RATE)
+    true = np.asarray(json.loads(song.with_suffix(".beats.json").read_text())["beats"])
+    model = load_pose_model(DEFAULT_POSE_MODEL, "cpu")
+    over_chance = {}
+    for name, snap in (("retimed", BeatSnap()), ("own timing", None)):
+        dance = generate_dance(model, samples, SONG_SAMPLE_RATE, seed=0, snap=snap)
+        moves = velocity_minimum_beats(dance.xy, dance.fps)
+        hit = beats_aligned(moves, true * dance.fps, 1).mean()
+        chance = chance_hit_rate(moves, true * dance.fps, len(dance), np.random.default_rng(0), tolerance_frames=1)
+        over_chance[name] = hit - chance
+    # Share of movement beats within one frame of a true beat, over chance: the retiming is what puts them there.
+    assert over_chance["retimed"] >= 0.2 > over_chance["own timing"], over_chance

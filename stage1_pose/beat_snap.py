@@ -1,0 +1,114 @@
+"""Moving a generated dance's movement beats onto the song's beats by a gentle, smooth retiming.
+
+Every method's dance goes through this step at generation unless it is turned off (``--no-beat-snap``): the
+product dances on the beat whatever the method's own timing; ``dancesynth evaluate`` scores the methods without it,
+as the papers do. It generalises Dancing2Music's warper (which stretches its dance units onto beats) to any dance:
+
+1. The movement beats are the velocity minima of the smoothed joint speed
+   (:func:`dancesynth.core.motion.velocity_minimum_beats`, Bailando's and EDGE's definition).
+2. Each may move to a music beat at most ``max_shift`` seconds away. A dynamic programme picks the set of moves
+   that puts the most movement beats on beats (ties: the smallest total move), keeping their order, each music
+   beat used once, and the local playback rate between consecutive anchors within ``[1 / max_rate, max_rate]``;
+   the first and last frames stay where they are, so the dance keeps its length and its sync with the song.
+3. The retiming (output time -> source time) is a monotone cubic through the anchors (C1: no speed jumps), and
+   the dance is read at the retimed instants in its raw form — root position and bone vectors, cubic in time,
+   bone lengths linear — so bones keep their lengths.
+
+Poses are in model coordinates (:func:`dancesynth.core.skeleton.normalize`), ``[T, 25, 2]``; beats in pose
+frames (fractional: seconds x fps).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from scipy.interpolate import PchipInterpolator
+
+from dancesynth.core.motion import velocity_minimum_beats
+from stage1_pose.models.kinematics import absolute_positions, bone_vectors, forward_kinematics, joint_lengths
+
+
+@dataclass(frozen=True)
+class BeatSnap:
+    """How far a movement beat may move (seconds) and how much playback may speed up or slow down locally
+    (a factor; its inverse bounds slowing)."""
+
+    max_shift: float = 0.25
+    max_rate: float = 1.5
+    # Retiming moves the smoothed speed's minima a little; each pass snaps what the previous one left off the beat.
+    passes: int = 3
+
+
+DEFAULT_SNAP = BeatSnap()
+
+
+def snap_anchors(kinematic: np.ndarray, beats: np.ndarray, frames: int, max_shift_frames: float,
+                 max_rate: float) -> tuple[np.ndarray, np.ndarray]:
+    """``(source, target)`` anchor frames (float, increasing, first ``(0, 0)``, last ``(frames - 1, frames - 1)``):
+    the movement beats ``kinematic`` (frames) that move, each to the music beat (fractional frames) it lands on.
+
+    The most movement beats on distinct beats, ties broken by the smallest total shift, such that every segment
+    between consecutive anchors plays at a rate (target span / source span) within ``[1 / max_rate, max_rate]``.
+    """
+    end = float(frames - 1)
+    k = np.asarray(kinematic, np.float64).ravel()
+    b = np.asarray(beats, np.float64).ravel()
+    b = b[(b > 0) & (b < end)]
+    states = [(0.0, 0.0)]
+    for kin in k:
+        states += [(kin, beat) for beat in b[np.abs(b - kin) <= max_shift_frames]]
+    states.append((end, end))
+    src, dst = (np.array(column) for column in zip(*states))
+    # Each anchor gains 1 less its shift's share, so that all shifts together weigh less than one anchor.
+    gain = 1.0 - np.abs(src - dst) / ((max_shift_frames + 1.0) * (len(k) + 2))
+    gain[-1] = 0.0
+    # The best chain's score ending at each state, and the state before it in that chain.
+    score = np.full(len(src), -np.inf)
+    score[0] = 0.0
+    back = np.full(len(src), -1)
+    for i in range(1, len(src)):
+        span_src, span_dst = src[i] - src[:i], dst[i] - dst[:i]
+        ok = (span_src > 0) & (span_dst > 0)
+        rate = np.divide(span_dst, span_src, out=np.zeros(i), where=ok)
+        ok &= (rate >= 1.0 / max_rate) & (rate <= max_rate) & np.isfinite(score[:i])
+        if not ok.any():
+            continue
+        candidates = np.where(ok, score[:i], -np.inf)
+        best = int(np.argmax(candidates))
+        score[i], back[i] = candidates[best] + gain[i], best
+    if not np.isfinite(score[-1]):
+        return np.array([0.0, end]), np.array([0.0, end])
+    chain = [len(src) - 1]
+    while chain[-1] != 0:
+        chain.append(int(back[chain[-1]]))
+    chain.reverse()
+    return src[chain], dst[chain]
+
+
+def snap_to_beats(poses: np.ndarray, beat_frames: np.ndarray, fps: float,
+                  settings: BeatSnap = DEFAULT_SNAP) -> np.ndarray:
+    """``[T, 25, 2]`` model-coordinate poses -> the same dance retimed so that its movement beats land on
+    ``beat_frames`` (fractional pose frames) where a gentle retiming can put them (see the module's doc)."""
+    for _ in range(settings.passes):
+        poses = _snap_once(poses, beat_frames, fps, settings)
+    return poses
+
+
+def _snap_once(poses: np.ndarray, beat_frames: np.ndarray, fps: float, settings: BeatSnap) -> np.ndarray:
+    frames = len(poses)
+    if frames < 4 or len(beat_frames) == 0:
+        return poses
+    kinematic = velocity_minimum_beats(absolute_positions(np.asarray(poses, np.float64)), fps)
+    src, dst = snap_anchors(kinematic, beat_frames, frames, settings.max_shift * fps, settings.max_rate)
+    if len(src) == 2:
+        return poses
+    source_time = np.clip(PchipInterpolator(dst, src)(np.arange(frames)), 0.0, frames - 1.0)
+    pose_t = torch.as_tensor(np.asarray(poses, np.float64))
+    raw, lengths = bone_vectors(pose_t).numpy(), joint_lengths(pose_t).numpy()
+    t = np.arange(frames)
+    raw_at = PchipInterpolator(t, raw.reshape(frames, -1), axis=0)(source_time).reshape(raw.shape)
+    lengths_at = np.stack([np.interp(source_time, t, lengths[:, j]) for j in range(lengths.shape[1])], axis=1)
+    placed = forward_kinematics(torch.from_numpy(raw_at), torch.from_numpy(lengths_at)).numpy()
+    return placed.astype(np.asarray(poses).dtype)

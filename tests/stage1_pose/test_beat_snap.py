@@ -1,0 +1,73 @@
+import numpy as np
+import torch
+
+from dancesynth.core.motion import beats_aligned, mean_speed, velocity_minimum_beats
+from dancesynth.core.skeleton import BODY25_TREE, JOINT_INDEX, NUM_JOINTS, ROOT
+from stage1_pose.beat_snap import BeatSnap, snap_anchors, snap_to_beats
+from stage1_pose.models.kinematics import absolute_positions, forward_kinematics, joint_lengths
+
+FPS = 15.0
+BEAT_FRAMES = 8.0  # 112.5 BPM at 15 fps
+
+
+def swinging_arms(frames: int, stop_offset: float, period: float = BEAT_FRAMES) -> np.ndarray:
+    """``[frames, 25, 2]`` model-coordinate poses: a standing body whose arms swing and stop every ``period`` frames,
+    ``stop_offset`` frames after each multiple of ``period``."""
+    raw = np.zeros((frames, NUM_JOINTS, 2))
+    for _, _parent, child in BODY25_TREE:  # every bone points down, the torso and head up
+        raw[:, child] = (0.0, -1.0) if child in (JOINT_INDEX["Neck"], JOINT_INDEX["Nose"]) else (0.2, 1.0)
+    t = np.arange(frames)
+    angle = 0.8 * np.cos(np.pi * (t - stop_offset) / period)  # angular speed 0 at t = offset + n * period
+    for joint in ("RElbow", "RWrist", "LElbow", "LWrist"):
+        raw[:, JOINT_INDEX[joint]] = np.stack([np.sin(angle), np.cos(angle)], axis=1)
+    raw[:, ROOT] = 0.0
+    return forward_kinematics(torch.from_numpy(raw), torch.full((NUM_JOINTS,), 0.25, dtype=torch.float64)).numpy()
+
+
+def test_stops_two_frames_late_move_onto_the_beats_keeping_length_bones_and_speed():
+    poses = swinging_arms(300, stop_offset=2.0)
+    beats = np.arange(0.0, 300, BEAT_FRAMES)
+    before = velocity_minimum_beats(absolute_positions(poses), FPS)
+    assert beats_aligned(before, beats, 1).mean() < 0.05
+
+    snapped = snap_to_beats(poses, beats, FPS)
+
+    after = velocity_minimum_beats(absolute_positions(snapped), FPS)
+    assert snapped.shape == poses.shape and np.isfinite(snapped).all()
+    assert beats_aligned(after, beats, 1).mean() >= 0.9
+    lengths = joint_lengths(torch.from_numpy(snapped)).numpy()
+    np.testing.assert_allclose(np.delete(lengths, ROOT, axis=1), 0.25, atol=1e-6)
+    np.testing.assert_allclose(snapped[[0, -1]], poses[[0, -1]], atol=1e-9)
+    speed = mean_speed(absolute_positions(snapped), FPS) / mean_speed(absolute_positions(poses), FPS)
+    assert 0.95 < speed < 1.05
+
+
+def test_a_dance_already_on_the_beats_is_left_as_it_is_and_no_beats_change_nothing():
+    poses = swinging_arms(200, stop_offset=0.0)
+    beats = np.arange(0.0, 200, BEAT_FRAMES)
+    np.testing.assert_allclose(snap_to_beats(poses, beats, FPS), poses, atol=1e-3)
+    np.testing.assert_array_equal(snap_to_beats(poses, np.zeros(0), FPS), poses)
+
+
+def test_anchors_keep_order_use_each_beat_once_and_bound_the_playback_rate():
+    rng = np.random.default_rng(0)
+    kinematic = np.sort(rng.choice(np.arange(3, 297), 70, replace=False))
+    beats = np.arange(0.0, 300, 7.3)
+    src, dst = snap_anchors(kinematic, beats, 300, max_shift_frames=3.0, max_rate=1.5)
+    assert (src[0], dst[0], src[-1], dst[-1]) == (0, 0, 299, 299)
+    rate = np.diff(dst) / np.diff(src)
+    assert (np.diff(src) > 0).all() and (np.diff(dst) > 0).all()
+    assert ((rate >= 1 / 1.5 - 1e-9) & (rate <= 1.5 + 1e-9)).all()
+    inner_src, inner_dst = src[1:-1], dst[1:-1]
+    assert np.isin(inner_src, kinematic).all() and np.isin(inner_dst, beats).all()
+    assert (np.abs(inner_src - inner_dst) <= 3.0).all()
+    assert len(inner_src) >= 30
+
+
+def test_a_tighter_rate_bound_moves_fewer_beats():
+    poses = swinging_arms(300, stop_offset=3.0, period=9.0)
+    beats = np.arange(0.0, 300, BEAT_FRAMES)
+    kinematic = velocity_minimum_beats(absolute_positions(poses), FPS)
+    loose = snap_anchors(kinematic, beats, 300, BeatSnap().max_shift * FPS, 1.5)[0]
+    tight = snap_anchors(kinematic, beats, 300, BeatSnap().max_shift * FPS, 1.05)[0]
+    assert len(tight) < len(loose)
