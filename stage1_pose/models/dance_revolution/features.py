@@ -23,9 +23,9 @@ from stage1_pose.features import (
     pose_rows,
 )
 
-FEATURE_DIM = 20 + 20 + 12 + 1 + 1 + 384
-# The tempogram's autocorrelation window in analysis frames, as in the paper's code.
-_TEMPOGRAM_WINDOW = 384
+# The tempogram's autocorrelation window in analysis frames, as in the paper's code: its number of columns.
+TEMPOGRAM_WINDOW = 384
+FEATURE_DIM = 20 + 20 + 12 + 1 + 1 + TEMPOGRAM_WINDOW
 
 
 def feature_dim(fps: float) -> int:
@@ -46,8 +46,8 @@ def extract(samples: np.ndarray, sr: int, fps: float, beats: np.ndarray | None) 
     mfcc_delta = librosa.feature.delta(mfcc, mode="nearest")
     pitch = chroma(y, ANALYSIS_SR, hop)
     onset = onset_envelope(mel_db, ANALYSIS_SR, hop)
-    tempogram = blockwise(onset, 1, _TEMPOGRAM_WINDOW // 2 + 1, lambda block: librosa.feature.tempogram(
-        onset_envelope=block, sr=ANALYSIS_SR, hop_length=hop, win_length=_TEMPOGRAM_WINDOW), frames=len(onset))
+    tempogram = blockwise(onset, 1, TEMPOGRAM_WINDOW // 2 + 1, lambda block: librosa.feature.tempogram(
+        onset_envelope=block, sr=ANALYSIS_SR, hop_length=hop, win_length=TEMPOGRAM_WINDOW), frames=len(onset))
     available = min(m.shape[-1] for m in (mfcc, pitch, onset[None], tempogram))
     rows = pose_rows(num_frames, fps, hop, available)
     # Beats are placed on the nearest pose frame rather than subsampled, so none is lost between kept frames.

@@ -19,6 +19,7 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import NUM_JOINTS, ROOT
 from stage1_pose.models.base import Batch, Stage1Method
 from stage1_pose.models.beat_clock import with_beat_phase
+from stage1_pose.models.dance_revolution.features import TEMPOGRAM_WINDOW
 from stage1_pose.models.kinematics import KinematicOutput, mean_raw_rows, speed_loss
 from stage1_pose.models.windowing import smooth_in_time, windowed
 
@@ -47,7 +48,11 @@ class LSTMConfig:
     features their mean over the window the LSTM reads (a training window, or a generation window), so an offset
     that lasts the window (a recording's timbre, its level) is not heard; ``mean_pose_start`` sets the output
     layer's bias, before the first training step, to the first batch's mean root position and bone vectors: a
-    kinematic output normalises each bone's direction, and a torso that started pointing down could stay there.
+    kinematic output normalises each bone's direction, and a torso that started pointing down could stay there;
+    ``tempogram`` False leaves out the features' last ``TEMPOGRAM_WINDOW`` (the tempogram, 384 of the 438): the
+    built-in songs span 60-135 BPM, and on faster real recordings that never-seen tempogram made the LSTM dance
+    whole passages at a quarter of the real speed (set to its training mean, the same passages moved at 0.5-1.1x);
+    the beat phase still says where the beats are.
     """
 
     feature_dim: int = 438
@@ -68,6 +73,7 @@ class LSTMConfig:
     feature_dropout: float = 0.0
     centre_features: bool = False
     mean_pose_start: bool = False
+    tempogram: bool = True
 
     @classmethod
     def preset(cls, name: str) -> "LSTMConfig":
@@ -84,7 +90,7 @@ LSTM_PRESETS: dict[str, LSTMConfig] = {
     "small": LSTMConfig(hidden=128, layers=2, dropout=0.0, lr=1e-3, batch_size=16, window_frames=90, epochs=60,
                         epoch_windows=912, kinematic_output=True, speed_weight=5.0, windowed_generation=True,
                         beat_phase_input=True, stride_frames=7, root_smoothing=2.0, feature_dropout=0.5,
-                        centre_features=True, mean_pose_start=True),
+                        centre_features=True, mean_pose_start=True, tempogram=False),
 }
 
 
@@ -96,7 +102,7 @@ class LSTMBaseline(Stage1Method):
 
     def __init__(self, config: LSTMConfig) -> None:
         super().__init__(config)
-        inputs = config.feature_dim + (2 if config.beat_phase_input else 0)
+        inputs = self._music_dim() + (2 if config.beat_phase_input else 0)
         self.lstm = nn.LSTM(inputs, config.hidden, num_layers=config.layers, batch_first=True,
                             dropout=config.dropout if config.layers > 1 else 0.0)
         self.out = nn.Linear(config.hidden, NUM_JOINTS * 2)
@@ -107,13 +113,18 @@ class LSTMBaseline(Stage1Method):
         """``[B, T, feature_dim]`` (+ ``[B, T]`` beat flags with ``beat_phase_input``) -> ``[B, T, 25, 2]``; with
         kinematic output, bones of ``lengths`` (``[B, 1, 25]``, default the training data's mean body); ``window`` > 0:
         the LSTM runs on windows of that many frames."""
-        inputs = with_beat_phase(features, beats) if self.config.beat_phase_input else features
-        h = windowed(lambda f: self.lstm(self._music_view(f, features.shape[-1]))[0], (inputs,), window)
+        music = features[..., :self._music_dim()]
+        inputs = with_beat_phase(music, beats) if self.config.beat_phase_input else music
+        h = windowed(lambda f: self.lstm(self._music_view(f, music.shape[-1]))[0], (inputs,), window)
         out = self.out(h).reshape(features.shape[0], features.shape[1], NUM_JOINTS, 2)
         if self.config.root_smoothing:
             root = smooth_in_time(out[:, :, ROOT], self.config.root_smoothing)
             out = torch.cat([out[:, :, :ROOT], root[:, :, None], out[:, :, ROOT + 1:]], dim=2)
         return out if self.kinematics is None else self.kinematics(out, lengths)
+
+    def _music_dim(self) -> int:
+        """How many leading feature columns the LSTM reads."""
+        return self.config.feature_dim - (0 if self.config.tempogram else TEMPOGRAM_WINDOW)
 
     def _music_view(self, inputs: torch.Tensor, dim: int) -> torch.Tensor:
         """One window's ``[B, t, dim + extra]`` inputs with its first ``dim`` columns (the music features) centred
