@@ -90,25 +90,32 @@ def snap_anchors(kinematic: np.ndarray, beats: np.ndarray, frames: int, max_shif
 def snap_to_beats(poses: np.ndarray, beat_frames: np.ndarray, fps: float,
                   settings: BeatSnap = DEFAULT_SNAP) -> np.ndarray:
     """``[T, 25, 2]`` model-coordinate poses -> the same dance retimed so that its movement beats land on
-    ``beat_frames`` (fractional pose frames) where a gentle retiming can put them (see the module's doc)."""
-    for _ in range(settings.passes):
-        poses = _snap_once(poses, beat_frames, fps, settings)
-    return poses
+    ``beat_frames`` (fractional pose frames) where a gentle retiming can put them (see the module's doc).
 
-
-def _snap_once(poses: np.ndarray, beat_frames: np.ndarray, fps: float, settings: BeatSnap) -> np.ndarray:
+    Each pass finds the anchors on the dance retimed so far; the passes' retimings are composed and the dance is
+    read once, from the original frames, so that it is interpolated (and smoothed) only once."""
     frames = len(poses)
-    if frames < 4 or len(beat_frames) == 0:
-        return poses
-    kinematic = velocity_minimum_beats(absolute_positions(np.asarray(poses, np.float64)), fps)
-    src, dst = snap_anchors(kinematic, beat_frames, frames, settings.max_shift * fps, settings.max_rate)
-    if len(src) == 2:
-        return poses
-    source_time = np.clip(PchipInterpolator(dst, src)(np.arange(frames)), 0.0, frames - 1.0)
+    t = np.arange(frames, dtype=np.float64)
+    source_time, snapped = t, poses
+    for _ in range(settings.passes if frames >= 4 and len(beat_frames) else 0):
+        kinematic = velocity_minimum_beats(absolute_positions(np.asarray(snapped, np.float64)), fps)
+        src, dst = snap_anchors(kinematic, beat_frames, frames, settings.max_shift * fps, settings.max_rate)
+        if len(src) == 2:
+            break
+        step = np.clip(PchipInterpolator(dst, src)(t), 0.0, frames - 1.0)
+        source_time = np.interp(step, t, source_time)
+        snapped = _read_at(poses, source_time)
+    return snapped
+
+
+def _read_at(poses: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """``[T, 25, 2]`` model-coordinate poses read at ``[N]`` fractional frame ``times``: root position and bone
+    vectors cubic (PCHIP) in time, bone lengths linear, joints placed again by forward kinematics."""
+    frames = len(poses)
     pose_t = torch.as_tensor(np.asarray(poses, np.float64))
     raw, lengths = bone_vectors(pose_t).numpy(), joint_lengths(pose_t).numpy()
     t = np.arange(frames)
-    raw_at = PchipInterpolator(t, raw.reshape(frames, -1), axis=0)(source_time).reshape(raw.shape)
-    lengths_at = np.stack([np.interp(source_time, t, lengths[:, j]) for j in range(lengths.shape[1])], axis=1)
+    raw_at = PchipInterpolator(t, raw.reshape(frames, -1), axis=0)(times).reshape(len(times), *raw.shape[1:])
+    lengths_at = np.stack([np.interp(times, t, lengths[:, j]) for j in range(lengths.shape[1])], axis=1)
     placed = forward_kinematics(torch.from_numpy(raw_at), torch.from_numpy(lengths_at)).numpy()
     return placed.astype(np.asarray(poses).dtype)
