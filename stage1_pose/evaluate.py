@@ -490,7 +490,8 @@ def run_evaluation(data_dir: str | os.PathLike, model_dirs: list[str], out_dir: 
     window_seconds = clf.window_frames / fps
     info = {"dataset": str(data_dir), "test songs": len(songs), "seconds per song": options.seconds,
             "trials": options.trials, "style classifier": clf_dir, "classifier window (s)": window_seconds,
-            "tolerance_frames": options.tolerance_frames, "fps": fps, "models": ", ".join(model_dirs) or "none"}
+            "tolerance_frames": options.tolerance_frames, "fps": fps, "models": ", ".join(model_dirs) or "none",
+            "models' timing": "retimed onto the beats (--beat-snap)" if options.beat_snap else "their own"}
     write_report(out_dir, rows, info)
     plot_fid_over_time({r.name: r.fid_curve for r in rows}, window_seconds, out_dir / "fid_over_time.png")
     _beat_figure(songs, samples, out_dir, options.plot_seconds)

@@ -48,6 +48,16 @@ def test_evaluate_a_tiny_lstm_end_to_end(tmp_path, capsys):
              for r, c in ((0, 0), (1, 0))]
     assert moved[0] > 1.0 and moved[1] < 0.5
 
+    # --beat-snap scores the dances as `dance` makes them: only the model's row changes, and the report says so.
+    snapped = tmp_path / "snapped"
+    assert main(["evaluate", "--data", str(data), "--models", str(run), "--out", str(snapped), "--classifier",
+                 str(clf), "--trials", "1", "--seconds", "6", "--video-seconds", "1", "--device", "cpu",
+                 "--beat-snap"]) == 0
+    again = {r["name"]: r for r in json.loads((snapped / "report.json").read_text())["rows"]}
+    assert again["real dances"]["summary"] == rows["real dances"]["summary"]
+    assert again["lstm"]["per_trial"]["fid"][0] != rows["lstm"]["per_trial"]["fid"][0]
+    assert "retimed onto the beats" in (snapped / "report.md").read_text()
+
 
 def test_errors_are_one_sentence_without_traceback(tmp_path, capsys):
     assert main(["evaluate", "--data", str(tmp_path / "nope"), "--out", str(tmp_path / "r")]) == 1
