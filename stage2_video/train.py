@@ -138,9 +138,8 @@ class VideoTrainer:
         cfg, model = self.config, self.model
         label_p, real_p, label_c, real_c = (x.to(self.device) for x in batch)
         with torch.autocast(self.device.type, dtype=self.precision, enabled=self.precision != torch.float32):
-            painted_p = model.generate_layers(label_p)
-            painted_c = model.generate_layers(label_c, painted_p.frame)
-            fake_p, fake_c = painted_p.frame, painted_c.frame
+            fake_p, mask_p = model.generate_with_mask(label_p)
+            fake_c, mask_c = model.generate_with_mask(label_c, fake_p)
             labels, reals = torch.cat([label_p, label_c]), torch.cat([real_p, real_c])
             fakes = torch.cat([fake_p, fake_c])
             pairs = [(model.discriminator, torch.cat([labels, reals], 1), torch.cat([labels, fakes], 1))]
@@ -161,10 +160,8 @@ class VideoTrainer:
             loss_g = g_gan + g_feat + g_vgg + g_l1
             if cfg.blend:
                 target = foreground_target(labels, reals)
-                g_mask = F.l1_loss(torch.cat([painted_p.mask, painted_c.mask]).float(), target) * cfg.lambda_mask
-                rgb = torch.cat([painted_p.rgb, painted_c.rgb]).float()
-                g_person = F.l1_loss(rgb * target, reals * target) * cfg.lambda_person
-                loss_g = loss_g + g_mask + g_person
+                g_mask = F.l1_loss(torch.cat([mask_p, mask_c]).float(), target) * cfg.lambda_mask
+                loss_g = loss_g + g_mask
         self.opt_g.zero_grad(set_to_none=True)
         self.scaler.scale(loss_g).backward()
         self._sync(self.opt_g)
@@ -177,7 +174,7 @@ class VideoTrainer:
         self.scaler.update()
         losses = {"d": loss_d.item(), "g_gan": g_gan.item(), "g_feat": g_feat.item(), "g_vgg": g_vgg.item(),
                   "g_l1": g_l1.item()}
-        return {**losses, "g_mask": g_mask.item(), "g_person": g_person.item()} if cfg.blend else losses
+        return {**losses, "g_mask": g_mask.item()} if cfg.blend else losses
 
     # --- loop -----------------------------------------------------------------------------------------------
     def fit(self) -> dict:

@@ -10,7 +10,6 @@ two consecutive pairs stacked on the channel axis. H and W must be divisible by 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import NamedTuple
 
 import torch
 import torch.nn.functional as F
@@ -46,9 +45,6 @@ class Pix2PixHDConfig:
         lambda_mask: with ``blend``, L1 weight pulling the mask towards where the real frame differs from the plate
             near the skeleton (:func:`foreground_target`), so the person comes out opaque rather than a
             half-transparent average.
-        lambda_person: with ``blend``, L1 weight (averaged over the frame) between the painted RGB and the real
-            frame where the person is (:func:`foreground_target`): the composite's losses reach the RGB only through
-            the mask, and alone they left it free to paint per-pixel colour speckle over the body.
         lambda_feat, lambda_vgg: weights of discriminator feature matching and the VGG19 perceptual loss.
         lambda_l1: pixel L1 weight; 0 in the paper. The CPU preset uses it because the VGG loss, which
             supplies pix2pixHD's reconstruction signal, needs ImageNet weights that cannot be downloaded here.
@@ -75,7 +71,6 @@ class Pix2PixHDConfig:
     lambda_vgg: float = 10.0
     lambda_l1: float = 10.0
     lambda_mask: float = 10.0
-    lambda_person: float = 40.0
     lr: float = 2e-4
     beta1: float = 0.5
     batch_size: int = 4
@@ -258,14 +253,6 @@ def generator_channels(config: Pix2PixHDConfig) -> int:
     return condition_channels(config) + (IMAGE_CHANNELS if config.temporal else 0)
 
 
-class Painted(NamedTuple):
-    """A generated frame and, with ``blend``, the layers it was composed of (else None)."""
-
-    frame: torch.Tensor
-    mask: torch.Tensor | None
-    rgb: torch.Tensor | None
-
-
 class PlateBlend(nn.Module):
     """Paints ``inner``'s RGB over the input's background crop through ``inner``'s fourth channel as a mask.
 
@@ -282,17 +269,15 @@ class PlateBlend(nn.Module):
         with torch.no_grad():
             inner.output_conv.bias[IMAGE_CHANNELS] = self.START
 
-    def layers(self, x: torch.Tensor) -> Painted:
-        """The composed ``[B, 3, H, W]`` frame, the ``[B, 1, H, W]`` mask in [0, 1] it was composed with and the
-        ``[B, 3, H, W]`` RGB painted through it."""
+    def frame_and_mask(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The composed ``[B, 3, H, W]`` frame and the ``[B, 1, H, W]`` mask in [0, 1] it was composed with."""
         out = self.inner(x)
         plate = plate_crop(x)
         mask = out[:, IMAGE_CHANNELS:].add(1.0).mul(0.5)
-        rgb = out[:, :IMAGE_CHANNELS]
-        return Painted(plate + mask * (rgb - plate), mask, rgb)
+        return plate + mask * (out[:, :IMAGE_CHANNELS] - plate), mask
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        return self.layers(x).frame
+        return self.frame_and_mask(x)[0]
 
 
 # A pixel is foreground where the real frame differs from the plate by this much (0-255 scale: ~25 grey levels)
@@ -344,17 +329,18 @@ class Pix2PixHD(nn.Module):
     def generate(self, label: torch.Tensor, previous: torch.Tensor | None = None) -> torch.Tensor:
         """``[B, C, H, W]`` condition (label map, + background crop; :func:`condition_channels`) and previous
         frame (zeros when None) -> ``[B, 3, H, W]`` frame in [-1, 1]."""
-        return self.generate_layers(label, previous).frame
+        return self.generate_with_mask(label, previous)[0]
 
-    def generate_layers(self, label: torch.Tensor, previous: torch.Tensor | None = None) -> Painted:
-        """:meth:`generate`'s frame and, with ``blend``, the mask and RGB it painted the person with."""
+    def generate_with_mask(self, label: torch.Tensor,
+                        previous: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """:meth:`generate`'s frame and, with ``blend``, the ``[B, 1, H, W]`` mask it painted the person through."""
         if self.config.temporal:
             if previous is None:
                 previous = label.new_zeros(label.shape[0], IMAGE_CHANNELS, *label.shape[2:])
             label = torch.cat([label, previous], dim=1)
         if self.config.blend:
-            return self.generator.layers(label)
-        return Painted(self.generator(label), None, None)
+            return self.generator.frame_and_mask(label)
+        return self.generator(label), None
 
 
 def lsgan_loss(outputs: list[list[torch.Tensor]], target_is_real: bool) -> torch.Tensor:

@@ -48,11 +48,6 @@ def test_blend_paints_over_the_background_crop(local):
     with torch.no_grad():
         model.generator.inner.output_conv.bias[3] = -30.0  # mask shut: the plate exactly, whatever the skeleton
     assert torch.allclose(model.generate(label), plate, atol=1e-5)
-    # The painted RGB is still there to be taught where the person is, whatever the mask lets through.
-    painted = model.generate_layers(label)
-    assert painted.rgb.shape == (2, 3, 32, 32) and painted.mask.shape == (2, 1, 32, 32)
-    assert torch.allclose(painted.frame, plate + painted.mask * (painted.rgb - plate))
-    assert Pix2PixHD(_tiny()).generate_layers(label[:, :3]).mask is None
 
 
 def test_blend_needs_the_background():

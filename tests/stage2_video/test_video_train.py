@@ -123,8 +123,6 @@ def test_a_person_crossing_the_scene_gets_a_following_crop_and_the_background_co
     meta = train_video(tmp_path / "walk.mp4", tmp_path / "run", "small", TrainOptions(epochs=1, max_steps=1,
                        val_frames=2), poses=tmp_path / "walk.npz", device="cpu", overrides=tiny_config)
     assert "follow" in meta["framing"] and meta["config"]["background"] and meta["config"]["blend"]
-    # The mask and the painted person each get their own loss.
-    assert {"g_mask", "g_person"} <= set((tmp_path / "run" / "losses.csv").read_text().splitlines()[0].split(","))
 
 
 def test_a_person_dancing_on_the_spot_keeps_the_fixed_crop_without_the_background(tiny_run):
