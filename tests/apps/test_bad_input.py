@@ -211,7 +211,7 @@ EDITED = "latest.json does not fit the model it belongs to"
 META_EDITS = {  # run name -> (entry path, new value, what `generate` says, what `train-pose --resume` says)
     "hidden_16": (("config", "hidden"), 16, EDITED, EDITED),
     "layers_3": (("config", "layers"), 3, EDITED, EDITED),
-    "feature_dim_10": (("config", "feature_dim"), 10, EDITED, EDITED),
+    "feature_dim_10": (("config", "feature_dim"), 10, "leaves no music features", "leaves no music features"),
     "hidden_text": (("config", "hidden"), "eight", "is not a whole number", "is not a whole number"),
     "config_a_list": (("config",), [1], EDITED, EDITED),
     "config_missing": (("config",), None, EDITED, EDITED),

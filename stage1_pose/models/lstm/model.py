@@ -75,6 +75,12 @@ class LSTMConfig:
     mean_pose_start: bool = False
     tempogram: bool = True
 
+    def __post_init__(self) -> None:
+        if not self.tempogram and self.feature_dim <= TEMPOGRAM_WINDOW:
+            raise DancesynthError(f"feature_dim {self.feature_dim} leaves no music features once the "
+                                  f"{TEMPOGRAM_WINDOW}-column tempogram is left out; use the dance_revolution "
+                                  "features (438) or tempogram=true.")
+
     @classmethod
     def preset(cls, name: str) -> "LSTMConfig":
         """A named preset from :data:`LSTM_PRESETS`."""
