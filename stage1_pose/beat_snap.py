@@ -20,6 +20,7 @@ frames (fractional: seconds x fps).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -95,27 +96,36 @@ def snap_to_beats(poses: np.ndarray, beat_frames: np.ndarray, fps: float,
     Each pass finds the anchors on the dance retimed so far; the passes' retimings are composed and the dance is
     read once, from the original frames, so that it is interpolated (and smoothed) only once."""
     frames = len(poses)
+    if frames < 4 or len(beat_frames) == 0:
+        return poses
+    read_at = _reader(poses)
     t = np.arange(frames, dtype=np.float64)
     source_time, snapped = t, poses
-    for _ in range(settings.passes if frames >= 4 and len(beat_frames) else 0):
+    for _ in range(settings.passes):
         kinematic = velocity_minimum_beats(absolute_positions(np.asarray(snapped, np.float64)), fps)
         src, dst = snap_anchors(kinematic, beat_frames, frames, settings.max_shift * fps, settings.max_rate)
         if len(src) == 2:
             break
         step = np.clip(PchipInterpolator(dst, src)(t), 0.0, frames - 1.0)
         source_time = np.interp(step, t, source_time)
-        snapped = _read_at(poses, source_time)
+        snapped = read_at(source_time)
     return snapped
 
 
-def _read_at(poses: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """``[T, 25, 2]`` model-coordinate poses read at ``[N]`` fractional frame ``times``: root position and bone
-    vectors cubic (PCHIP) in time, bone lengths linear, joints placed again by forward kinematics."""
+def _reader(poses: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """A function reading the ``[T, 25, 2]`` model-coordinate poses at ``[N]`` fractional frame times: root position
+    and bone vectors cubic (PCHIP) in time, bone lengths linear, joints placed again by forward kinematics. The
+    interpolants are fitted once, for every pass."""
     frames = len(poses)
     pose_t = torch.as_tensor(np.asarray(poses, np.float64))
     raw, lengths = bone_vectors(pose_t).numpy(), joint_lengths(pose_t).numpy()
     t = np.arange(frames)
-    raw_at = PchipInterpolator(t, raw.reshape(frames, -1), axis=0)(times).reshape(len(times), *raw.shape[1:])
-    lengths_at = np.stack([np.interp(times, t, lengths[:, j]) for j in range(lengths.shape[1])], axis=1)
-    placed = forward_kinematics(torch.from_numpy(raw_at), torch.from_numpy(lengths_at)).numpy()
-    return placed.astype(np.asarray(poses).dtype)
+    raw_curve = PchipInterpolator(t, raw.reshape(frames, -1), axis=0)
+    dtype = np.asarray(poses).dtype
+
+    def read_at(times: np.ndarray) -> np.ndarray:
+        raw_at = raw_curve(times).reshape(len(times), *raw.shape[1:])
+        lengths_at = np.stack([np.interp(times, t, lengths[:, j]) for j in range(lengths.shape[1])], axis=1)
+        return forward_kinematics(torch.from_numpy(raw_at), torch.from_numpy(lengths_at)).numpy().astype(dtype)
+
+    return read_at

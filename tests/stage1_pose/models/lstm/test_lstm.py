@@ -10,7 +10,7 @@ from dancesynth.core.skeleton import NECK, ROOT, normalize  # noqa: E402
 from stage1_pose.data.styles import STYLES  # noqa: E402
 from stage1_pose.data.synth_dance import synthesize_dance  # noqa: E402
 from stage1_pose.models.base import Batch  # noqa: E402
-from stage1_pose.models.dance_revolution.features import TEMPOGRAM_WINDOW  # noqa: E402
+from stage1_pose.models.dance_revolution.features import FEATURE_DIM, TEMPOGRAM_WINDOW  # noqa: E402
 from stage1_pose.models.lstm.model import LSTMBaseline, LSTMConfig  # noqa: E402
 
 TINY = LSTMConfig(feature_dim=6, hidden=24, layers=2, dropout=0.0, lr=1e-2, window_frames=16)
@@ -70,12 +70,11 @@ def test_feature_dropout_acts_in_training_only():
 
 def test_without_the_tempogram_a_tempo_it_never_heard_changes_nothing():
     # Real recordings faster than any built-in song have a tempogram the LSTM never saw; small reads without it.
-    dim = 54 + TEMPOGRAM_WINDOW
-    config = replace(TINY, feature_dim=dim, tempogram=False)
+    config = replace(TINY, feature_dim=FEATURE_DIM, tempogram=False)
     model = LSTMBaseline(config).eval()
-    features, beats = torch.randn(1, 40, dim), torch.zeros(1, 40, dtype=torch.bool)
+    features, beats = torch.randn(1, 40, FEATURE_DIM), torch.zeros(1, 40, dtype=torch.bool)
     other_tempo = features.clone()
-    other_tempo[..., 54:] = torch.randn(1, 40, TEMPOGRAM_WINDOW) * 5
+    other_tempo[..., FEATURE_DIM - TEMPOGRAM_WINDOW:] = torch.randn(1, 40, TEMPOGRAM_WINDOW) * 5
     assert torch.equal(model.generate(other_tempo, beats), model.generate(features, beats))
     with_it = LSTMBaseline(replace(config, tempogram=True)).eval()
     assert not torch.allclose(with_it.generate(other_tempo, beats), with_it.generate(features, beats), atol=1e-3)
