@@ -12,11 +12,13 @@ from __future__ import annotations
 
 import contextlib
 import os
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from dancesynth.core.concurrency import read_ahead
 from dancesynth.core.device import resolve_device, resolve_precision
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import SONG_SAMPLE_RATE, VideoWriter, load_song
@@ -26,8 +28,8 @@ from stage1_pose.beat_snap import DEFAULT_SNAP
 from stage1_pose.generate import generate_dance, load_pose_model
 from stage1_pose.pretrained import DEFAULT_POSE_MODEL
 from stage2_video.cache import appearance_model_for
-from stage2_video.composite import scene_compositor
-from stage2_video.framing import label_map
+from stage2_video.composite import Compositor, scene_compositor
+from stage2_video.framing import Framing, label_map
 from stage2_video.models.pix2pixhd import affordable_preset
 from stage2_video.render import load_appearance_model, render_frames, target_poses
 from stage2_video.retarget import retarget_onto
@@ -101,6 +103,19 @@ def output_size(canvas: tuple[int, int], height: int | None) -> tuple[int, int]:
     return width + width % 2, height + height % 2
 
 
+def _output_frames(rendered: Iterable[np.ndarray], poses: PoseSequence, framings: list[Framing],
+                   compositor: Compositor | None, labels: bool) -> Iterator[tuple[np.ndarray, np.ndarray | None]]:
+    """(output frame, skeleton label or None) per rendered model-resolution frame: composited into the scene
+    unless ``compositor`` is None (the crop itself); the label, at the same size, only when ``labels``."""
+    for keypoints, framing, frame in zip(poses.keypoints, framings, rendered):
+        if compositor is not None:
+            frame = compositor.frame(frame, keypoints, framing)
+        label = None
+        if labels:
+            label = label_map(keypoints, framing) if compositor is None else compositor.skeleton(keypoints)
+        yield frame, label
+
+
 def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.PathLike | None = None,
           video_model: str | os.PathLike | None = None, target: str | os.PathLike | None = None,
           cache: str | os.PathLike | None = None, train_minutes: float | None = None, preset: str | None = None,
@@ -164,16 +179,11 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
                                                      audio_sr=SONG_SAMPLE_RATE))
                    for path, w in outputs]
         rendered = render_frames(appearance, poses, normalize=False, framings=framings)
-        for keypoints, framing, frame in track(zip(poses.keypoints, framings, rendered), total=len(poses),
-                                              desc="rendering", unit="frame", disable=not progress):
-            if compositor is not None:
-                frame = compositor.frame(frame, keypoints, framing)
+        for frame, label in track(read_ahead(_output_frames(rendered, poses, framings, compositor, len(writers) > 1)),
+                                  total=len(poses), desc="rendering", unit="frame", disable=not progress):
             writers[0].write(frame)
-            if len(writers) > 1:
-                label = (label_map(keypoints, framing) if compositor is None
-                         else compositor.skeleton(keypoints))
-                if skeleton_preview is not None:
-                    writers[1].write(label)
-                if side_by_side is not None:
-                    writers[-1].write(np.concatenate([label, frame], axis=1))
+            if skeleton_preview is not None:
+                writers[1].write(label)
+            if side_by_side is not None:
+                writers[-1].write(np.concatenate([label, frame], axis=1))
     return DanceResult(poses, [path for path, _ in outputs], Path(video_model))

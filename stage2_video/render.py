@@ -21,6 +21,7 @@ import torch
 from torch import nn
 
 from dancesynth.core.checkpoint import POINTER, load_checkpoint, run_file_contents
+from dancesynth.core.concurrency import read_ahead
 from dancesynth.core.config import config_from_dict
 from dancesynth.core.device import resolve_device, resolve_precision
 from dancesynth.core.errors import DancesynthError
@@ -207,7 +208,7 @@ def render_video(poses: PoseSequence, model: AppearanceModel | str | os.PathLike
     if not isinstance(model, AppearanceModel):
         model = load_appearance_model(model, device)
     out_path = Path(out_path)
-    frames = track(render_frames(model, poses, normalize), total=len(poses), desc="rendering", unit="frame",
+    frames = track(read_ahead(render_frames(model, poses, normalize)), total=len(poses), desc="rendering", unit="frame",
                   disable=not progress)
     with VideoWriter(out_path, poses.fps, model.config.width, model.config.height, audio=audio,
                      audio_sr=audio_sr) as writer:
