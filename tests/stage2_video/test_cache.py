@@ -1,0 +1,58 @@
+"""The appearance-model cache: an interrupted training leaves an entry that resumes, and only for its own video."""
+
+import multiprocessing
+import os
+import shutil
+import signal
+
+from stage2_video.cache import entry_path, list_entries, read_entry, train_for
+from stage2_video.data import video_digest
+from stage2_video.train import VideoTrainer
+
+
+def _train_until_interrupted(video, poses, run) -> None:
+    """Child process: a cache training (one minute asked for) that Ctrl-C hits in the middle of step 3."""
+    real_step, calls = VideoTrainer.train_step, []
+
+    def signalled(self, batch):
+        calls.append(1)
+        if len(calls) == 3:
+            os.kill(os.getpid(), signal.SIGINT)
+        return real_step(self, batch)
+
+    VideoTrainer.train_step = signalled
+    try:
+        train_for(video, run, 1.0, "small", device="cpu", poses=poses)
+    except KeyboardInterrupt:
+        os._exit(130)
+    os._exit(0)
+
+
+def test_an_interrupted_training_leaves_a_resumable_entry_of_its_own_video(tiny_target, tmp_path):
+    video, poses = tiny_target
+    cache = tmp_path / "cache"
+    entry = entry_path(video, "small", cache)
+    # A fresh process, as a user's: this one may hold native libraries (OpenVINO) that other tests loaded.
+    child = multiprocessing.get_context("spawn").Process(target=_train_until_interrupted, args=(video, poses, entry))
+    child.start()
+    child.join(120)
+    assert child.exitcode == 130, "Ctrl-C ended the training"
+    stopped = read_entry(entry)
+    assert stopped is not None and not stopped.finished and 0 < stopped.trained_seconds < 60
+    assert [e.path for e in list_entries(cache)] == [entry]
+
+    # Another video (other content, same name) looks up another entry and finds nothing trained.
+    other = tmp_path / "other" / video.name
+    other.parent.mkdir()
+    shutil.copy(video, other)
+    with open(other, "ab") as f:
+        f.write(b"\0")
+    assert video_digest(other) != video_digest(video)
+    assert read_entry(entry_path(other, "small", cache)) is None
+
+    # The same video resumes the entry for the seconds it lacks instead of starting again.
+    before = (entry / "latest.json").read_text()
+    train_for(video, entry, stopped.trained_seconds / 60 + 0.02, "small", device="cpu", poses=poses)
+    resumed = read_entry(entry)
+    assert (entry / "latest.json").read_text() != before
+    assert resumed.trained_seconds > stopped.trained_seconds
