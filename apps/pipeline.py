@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import time
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -91,6 +92,8 @@ class DanceResult:
     poses: PoseSequence  # the generated dance at the output fps, on the target's canvas (pixels)
     written: list[Path] = field(default_factory=list)
     video_model: Path | None = None  # the appearance model used (with --target: its cache entry)
+    # wall seconds of the frame loop (rendering, compositing, encoding every output), without loading and training
+    render_seconds: float = 0.0
 
 
 def output_size(canvas: tuple[int, int], height: int | None) -> tuple[int, int]:
@@ -178,6 +181,7 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
         writers = [stack.enter_context(VideoWriter(path, poses.fps, w, out_height, audio=segment,
                                                      audio_sr=SONG_SAMPLE_RATE))
                    for path, w in outputs]
+        started = time.perf_counter()
         rendered = render_frames(appearance, poses, normalize=False, framings=framings)
         for frame, label in track(read_ahead(_output_frames(rendered, poses, framings, compositor, len(writers) > 1)),
                                   total=len(poses), desc="rendering", unit="frame", disable=not progress):
@@ -186,4 +190,5 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
                 writers[1].write(label)
             if side_by_side is not None:
                 writers[-1].write(np.concatenate([label, frame], axis=1))
-    return DanceResult(poses, [path for path, _ in outputs], Path(video_model))
+    render_seconds = time.perf_counter() - started
+    return DanceResult(poses, [path for path, _ in outputs], Path(video_model), render_seconds)
