@@ -13,6 +13,11 @@ as the papers do. It generalises Dancing2Music's warper (which stretches its dan
 3. The retiming (output time -> source time) is a monotone cubic through the anchors (C1: no speed jumps), and
    the dance is read at the retimed instants in its raw form — root position and bone vectors, cubic in time,
    bone lengths linear — so bones keep their lengths.
+4. An accent then reshapes the timing within every beat interval, the beats themselves fixed: playback starts
+   slowly after a beat, runs faster mid-beat and stops sharply on the next (a share ``accent`` of each interval's
+   timing follows a Beta(2, 1.5) distribution function, the rest stays linear; the mean rate is 1). The body then
+   loses its motion within a frame or two of the beat, so that Dancing2Music's kinematic beats (motion lost per
+   frame, which peaks mid-deceleration, before the stop) land on the beat as well as the velocity minima.
 
 Poses are in model coordinates (:func:`dancesynth.core.skeleton.normalize`), ``[T, 25, 2]``; beats in pose
 frames (fractional: seconds x fps).
@@ -26,20 +31,30 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 from scipy.interpolate import PchipInterpolator
+from scipy.special import betainc
 
 from dancesynth.core.motion import velocity_minimum_beats
 from stage1_pose.models.kinematics import absolute_positions, bone_vectors, forward_kinematics, joint_lengths
 
+# Beta(a, b) distribution function of the accent: a = 2 starts each beat interval at rest, b = 1.5 < 2 ends it on
+# a steeper stop than it started from.
+ACCENT_SHAPE = (2.0, 1.5)
+
 
 @dataclass(frozen=True)
 class BeatSnap:
-    """How far a movement beat may move (seconds) and how much playback may speed up or slow down locally
-    (a factor; its inverse bounds slowing)."""
+    """How far a movement beat may move (seconds), how much playback may speed up or slow down locally (a factor;
+    its inverse bounds slowing) and the accent's share of each beat interval's timing (0: none, see the module)."""
 
     max_shift: float = 0.25
     max_rate: float = 1.5
     # Retiming moves the smoothed speed's minima a little; each pass snaps what the previous one left off the beat.
     passes: int = 3
+    accent: float = 0.5
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.accent <= 1.0:
+            raise ValueError(f"accent must be within [0, 1] (above 1 playback would run backwards), got {self.accent}")
 
 
 DEFAULT_SNAP = BeatSnap()
@@ -109,7 +124,28 @@ def snap_to_beats(poses: np.ndarray, beat_frames: np.ndarray, fps: float,
         step = np.clip(PchipInterpolator(dst, src)(t), 0.0, frames - 1.0)
         source_time = np.interp(step, t, source_time)
         snapped = read_at(source_time)
+    if settings.accent > 0:
+        snapped = read_at(np.interp(accent_times(frames, beat_frames, settings.accent), t, source_time))
     return snapped
+
+
+def accent_times(frames: int, beat_frames: np.ndarray, accent: float) -> np.ndarray:
+    """``[frames]`` output frame -> frame of the unaccented dance to show there: identity before the first and after
+    the last beat and on every beat; between two beats a blend, ``accent`` : ``1 - accent``, of the Beta(2, 1.5)
+    distribution function and the identity over the interval (slow after a beat, a sharp stop on the next)."""
+    t = np.arange(frames, dtype=np.float64)
+    b = np.asarray(beat_frames, np.float64).ravel()
+    b = np.unique(b[(b > 0) & (b < frames - 1)])
+    out = t.copy()
+    if len(b) < 2:
+        return out
+    segment = np.searchsorted(b, t, side="right") - 1
+    inside = (segment >= 0) & (segment < len(b) - 1)
+    lo = b[segment[inside]]
+    span = b[segment[inside] + 1] - lo
+    u = (t[inside] - lo) / span
+    out[inside] = lo + span * ((1.0 - accent) * u + accent * betainc(ACCENT_SHAPE[0], ACCENT_SHAPE[1], u))
+    return out
 
 
 def _reader(poses: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:

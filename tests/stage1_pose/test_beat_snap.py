@@ -1,9 +1,10 @@
 import numpy as np
+import pytest
 import torch
 
-from dancesynth.core.motion import beats_aligned, mean_speed, velocity_minimum_beats
+from dancesynth.core.motion import beats_aligned, joint_speeds, mean_speed, velocity_minimum_beats
 from dancesynth.core.skeleton import BODY25_TREE, JOINT_INDEX, NUM_JOINTS, ROOT
-from stage1_pose.beat_snap import BeatSnap, snap_anchors, snap_to_beats
+from stage1_pose.beat_snap import BeatSnap, accent_times, snap_anchors, snap_to_beats
 from stage1_pose.models.kinematics import absolute_positions, forward_kinematics, joint_lengths
 
 FPS = 15.0
@@ -45,8 +46,37 @@ def test_stops_two_frames_late_move_onto_the_beats_keeping_length_bones_and_spee
 def test_a_dance_already_on_the_beats_is_left_as_it_is_and_no_beats_change_nothing():
     poses = swinging_arms(200, stop_offset=0.0)
     beats = np.arange(0.0, 200, BEAT_FRAMES)
-    np.testing.assert_allclose(snap_to_beats(poses, beats, FPS), poses, atol=1e-3)
+    np.testing.assert_allclose(snap_to_beats(poses, beats, FPS, BeatSnap(accent=0.0)), poses, atol=1e-3)
     np.testing.assert_array_equal(snap_to_beats(poses, np.zeros(0), FPS), poses)
+
+
+def test_the_accent_stops_the_body_sharply_on_each_beat_keeping_the_beats_and_the_speed():
+    poses = swinging_arms(240, stop_offset=0.0)
+    beats = np.arange(0.0, 240, BEAT_FRAMES)
+    plain = snap_to_beats(poses, beats, FPS, BeatSnap(accent=0.0))
+    accented = snap_to_beats(poses, beats, FPS)
+    inner = beats[1:-1].astype(int)
+    np.testing.assert_allclose(accented[inner], plain[inner], atol=1e-9)  # on the beats: the same poses
+
+    def into_beats(dance):
+        """Speed over the frame into each beat, as a share of the beat interval's top speed."""
+        speed = joint_speeds(absolute_positions(dance), FPS).mean(axis=1)  # [t]: frame t -> t + 1
+        return np.mean([speed[b - 1] / speed[b - int(BEAT_FRAMES):b].max() for b in inner])
+
+    assert into_beats(accented) < 0.8 * into_beats(plain)  # 0.14 against 0.20 of the top speed
+    speed = mean_speed(absolute_positions(accented), FPS) / mean_speed(absolute_positions(plain), FPS)
+    assert 0.95 < speed < 1.05
+
+
+def test_accent_times_fix_the_beats_and_the_ends_and_never_run_backwards():
+    beats = np.array([3.0, 10.5, 18.0, 26.25])
+    times = accent_times(30, beats, 0.5)
+    np.testing.assert_allclose(times[:4], np.arange(4))  # before the first beat
+    np.testing.assert_allclose(times[27:], np.arange(27, 30))  # after the last
+    np.testing.assert_allclose(np.interp(beats, np.arange(30), times), beats, atol=0.5)
+    assert times[18] == 18.0 and (np.diff(times) > 0).all()
+    with pytest.raises(ValueError, match="accent"):
+        BeatSnap(accent=1.5)
 
 
 def test_anchors_keep_order_use_each_beat_once_and_bound_the_playback_rate():
