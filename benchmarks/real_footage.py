@@ -94,8 +94,8 @@ def run(args: argparse.Namespace) -> None:
             held_out = held_out_quality(run_dir, device="cpu")
             out = Path(tmp) / f"{preset}.mp4"
             start = time.perf_counter()
-            made = dance(SONG, out, target=clip, cache=args.model_cache, train_minutes=args.minutes, preset=preset,
-                  duration=args.dance_seconds, device="cpu")
+            made = dance(SONG, out, target=clip, cache=args.model_cache, train_minutes=args.minutes,
+                         preset=preset, duration=args.dance_seconds, device="cpu")
             dance_s = time.perf_counter() - start
             reals = [frame for t, frame in enumerate(read_frames(clip)) if t in held_out.frames]
             composited = composited_frames(run_dir, held_out)
