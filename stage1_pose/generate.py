@@ -23,7 +23,7 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import NormParams, PoseSequence, denormalize
 from stage1_pose.beat_snap import DEFAULT_SNAP, BeatSnap, snap_to_beats
 from stage1_pose.beats import beat_times, beats_on_frames
-from stage1_pose.features import extract_features, feature_dim
+from stage1_pose.features import extract_features
 from stage1_pose.models.base import Stage1Method
 from stage1_pose.registry import build_method, config_type
 
@@ -74,10 +74,6 @@ def load_pose_model(run_dir: str | os.PathLike, device: str = "auto", precision:
         if not (math.isfinite(norm.fps) and min(norm.fps, norm.scale, norm.width, norm.height) > 0
                 and mean.ndim == 1 and mean.shape == std.shape):
             raise ValueError("fps, canvas, body_scale or feature_stats out of range")
-    columns = feature_dim(str(meta["feature_kind"]), norm.fps)
-    if len(mean) != columns:
-        raise DancesynthError(f"{run_dir} was trained on {len(mean)} {meta['feature_kind']} feature columns and this "
-                              f"version extracts {columns}; train it again with this version.")
     method.to(dev).eval()
     if precision == "auto":
         precision = "int8" if dev.type == "cpu" else "fp32"

@@ -36,10 +36,10 @@ def test_feature_rows_match_pose_frames_long(kind, drum_loop):
 
 def test_feature_dims_and_other_fps():
     assert feature_dim("dance_revolution") == 438
-    assert feature_dim("dancing2music") == 29
+    assert feature_dim("dancing2music") == 28
     assert feature_dim("waveform") == 1024 and feature_dim("waveform", fps=10) == 1536
     y = np.random.default_rng(0).standard_normal(22050 * 2).astype(np.float32) * 0.1
-    assert extract_features(y, 22050, "dancing2music", fps=24).shape == (48, 29)
+    assert extract_features(y, 22050, "dancing2music", fps=24).shape == (48, 28)
     with pytest.raises(DancesynthError, match="whole number"):
         extract_features(y, 22050, "waveform", fps=7)
     with pytest.raises(DancesynthError, match="dance_revolution, dancing2music, waveform"):

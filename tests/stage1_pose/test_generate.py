@@ -73,7 +73,7 @@ def test_methods_get_the_songs_tracked_beats():
     method.generate = lambda features, beats, generator=None: received.append(beats) or plain(features, beats,
                                                                                               generator)
     meta = {"fps": 15.0, "feature_kind": "dancing2music", "canvas": [1280, 720], "body_scale": 100.0,
-            "feature_stats": {"mean": [0.0] * 29, "std": [1.0] * 29}}
+            "feature_stats": {"mean": [0.0] * 28, "std": [1.0] * 28}}
     dance = generate_dance(LoadedPoseModel(method, meta, torch.device("cpu")), song, sr)
     assert len(dance) == 120
     assert received[0].shape == (1, 120) and received[0].dtype == torch.bool

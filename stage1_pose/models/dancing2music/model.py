@@ -7,7 +7,7 @@ Training has two phases driven by one ``training_step`` (the phase follows the e
   (:mod:`stage1_pose.models.dancing2music.dance_units`, 32 frames, 4 beats at fixed frames). The DU-VAE learns
   them with an initial-pose encoder ``E_ini`` (MLP, first frame -> z_ini), a movement encoder ``E_mov``
   (GRU -> z_mov) and a unit decoder ``G_uni`` (GRU), trained with Eq. 3-5 (L1 reconstruction, KL on both latents, shift
-  reconstruction). The music style classifier (GRU over the 29-d features -> style logits; its last hidden state
+  reconstruction). The music style classifier (GRU over the 28-d features -> style logits; its last hidden state
   is the style feature s) is trained alongside on the windows' style labels.
 * Composition (Sec. 3.2): runs of 3-5 consecutive units are encoded to z_mov sequences by the frozen ``E_mov``.
   MM-GAN: movement-to-dance encoder ``E_mtd`` (GRU, VAE head) -> z_dan, style-to-dance encoder ``E_std``
@@ -20,7 +20,7 @@ unit starts from the previous unit's last frame, re-encoded by ``E_ini``) and wa
 
 Poses are all 25 BODY_25 joints in model coordinates (:func:`dancesynth.core.skeleton.normalize`, unit = torso
 length), flattened to 50 numbers per frame; the paper's 14-joint subset is not used, so generated dances have
-feet and face points. Music is ``[B, T, 29]`` standardised ``dancing2music`` features, one row per pose frame,
+feet and face points. Music is ``[B, T, 28]`` standardised ``dancing2music`` features, one row per pose frame,
 and the song's beats ``[B, T]`` (bool beat frames), which the beat warper follows.
 """
 
@@ -40,7 +40,6 @@ from dancesynth.core.motion import kinematic_beats
 from dancesynth.core.skeleton import NUM_JOINTS, ROOT
 from stage1_pose.models.base import Batch, Stage1Method, bce_with_constant_target
 from stage1_pose.models.dancing2music import dance_units as du
-from stage1_pose.models.dancing2music.features import SOUND_COLUMNS
 from stage1_pose.models.gaussian import kl_to_standard_normal, reparameterize
 from stage1_pose.models.kinematics import (
     KinematicOutput,
@@ -93,13 +92,9 @@ class Dancing2MusicConfig:
     ``song_style`` (not in the paper; generation only) gives every group of units the mean of the groups' style
     features, one style for the whole song: decided group by group, a real song's intro and its rest got different
     styles, and the intro was danced at about twice the speed of the rest.
-    ``style_swap`` (not in the paper) is the share of the style classifier's training windows whose sound columns
-    (all but the tempo, :mod:`stage1_pose.models.dancing2music.features`) come from another window of the batch
-    (:func:`swap_sound`): it learns that the tempo always tells the style and the sound does not, so a recorded
-    song, whose sound is unlike any built-in style's, is classified by its tempo.
     """
 
-    feature_dim: int = 29
+    feature_dim: int = 28
     num_styles: int = 3
     style_hidden: int = 30
     gru_hidden: int = 1024
@@ -137,7 +132,6 @@ class Dancing2MusicConfig:
     speed_weight: float = 0.0
     stage_seconds: float = 0.0
     song_style: bool = False
-    style_swap: float = 0.0
 
     def __post_init__(self) -> None:
         if not 1 <= self.min_units <= self.max_units:
@@ -151,8 +145,6 @@ class Dancing2MusicConfig:
         if self.composition and self.decomp_epochs >= self.epochs:
             raise DancesynthError(f"decomp_epochs ({self.decomp_epochs}) must be below epochs ({self.epochs}) "
                                   "so the composition phase runs; raise epochs.")
-        if not 0 <= self.style_swap <= 1:
-            raise DancesynthError(f"style_swap is a share of windows, 0..1; got {self.style_swap}.")
         if self.stage_seconds < 0:
             raise DancesynthError(f"stage_seconds must be >= 0 (0: the paper's free root), got {self.stage_seconds}.")
 
@@ -171,8 +163,7 @@ _PAPER = Dancing2MusicConfig()
 _SMALL = Dancing2MusicConfig(gru_hidden=128, mlp_hidden=128, z_mov=32, z_dan=32, noise_dim=16, lr=3e-3,
                              batch_size=32, epochs=420, decomp_epochs=180, relative_movement=True, motion_scale=20.0,
                              warp_stretch=2.0, beat_accent=0.3, kinematic_output=True, epoch_windows=288,
-                             speed_weight=5.0, stage_seconds=2.0, song_style=True,
-                             style_swap=0.5)
+                             speed_weight=5.0, stage_seconds=2.0, song_style=True)
 DANCING2MUSIC_PRESETS: dict[str, Dancing2MusicConfig] = {
     "paper": _PAPER,
     "small": _SMALL,
@@ -190,17 +181,6 @@ def mlp(sizes: Sequence[int], layer_norm: bool = False) -> nn.Sequential:
             layers += [nn.LayerNorm(b)] if layer_norm else []
             layers.append(nn.LeakyReLU(0.2))
     return nn.Sequential(*layers)
-
-
-def swap_sound(features: torch.Tensor, share: float) -> torch.Tensor:
-    """``[N, T, 29]`` feature windows with the sound columns (all but the tempo) of a random ``share`` of them
-    replaced by those of random windows of the batch."""
-    n = features.shape[0]
-    picked = torch.rand(n, device=features.device) < share
-    donors = torch.randint(n, (n,), device=features.device)
-    out = features.clone()
-    out[picked, :, :SOUND_COLUMNS] = features[donors[picked], :, :SOUND_COLUMNS]
-    return out
 
 
 def shift_root(units: torch.Tensor, shift: torch.Tensor) -> torch.Tensor:
@@ -303,7 +283,7 @@ class UnitDecoder(nn.Module):
 
 
 class MusicStyleClassifier(nn.Module):
-    """Music style classifier: features ``[N, T, 29]`` -> (logits ``[N, styles]``, style feature s ``[N, 30]``)."""
+    """Music style classifier: features ``[N, T, 28]`` -> (logits ``[N, styles]``, style feature s ``[N, 30]``)."""
 
     def __init__(self, feature_dim: int, hidden: int, num_styles: int) -> None:
         super().__init__()
@@ -361,7 +341,7 @@ class StyleToDanceEncoder(nn.Module):
 
 
 class MovementDiscriminator(nn.Module):
-    """D_mov: (z_mov sequence ``[N, n, z_mov]``, units' music features ``[N, n, 32, 29]``) -> logit ``[N]``.
+    """D_mov: (z_mov sequence ``[N, n, z_mov]``, units' music features ``[N, n, 32, 28]``) -> logit ``[N]``.
 
     Each unit's music is summarised by a GRU; a GRU runs over (z_mov, music summary) pairs and 5 FC layers with
     layer normalisation judge its last state.
@@ -496,13 +476,11 @@ class Dancing2MusicMethod(Stage1Method):
         return {"recon": recon, "kl": kl, "shift": shift, "total": total}
 
     def _decomposition_step(self, batch: Batch) -> dict[str, float]:
-        features = swap_sound(batch.features, self.config.style_swap) if self.config.style_swap else batch.features
-        logits, _ = self.style(features)
+        logits, _ = self.style(batch.features)
         style_loss = F.cross_entropy(logits, batch.style)
         self.optimize("style", style_loss)
-        with torch.no_grad():
-            own = logits if features is batch.features else self.style(batch.features)[0]
-        logs = {"style_ce": style_loss.item(), "style_acc": (own.argmax(-1) == batch.style).float().mean().item()}
+        logs = {"style_ce": style_loss.item(),
+                "style_acc": (logits.argmax(-1) == batch.style).float().mean().item()}
         poses = batch.poses.detach().cpu().numpy()
         units = [du.cut_units(p, r) for p, runs in zip(poses, self.window_runs(poses)) for r in runs]
         if not units:
@@ -518,7 +496,7 @@ class Dancing2MusicMethod(Stage1Method):
 
     def _composition_sequences(self, batch: Batch) -> tuple[torch.Tensor, torch.Tensor] | None:
         """Runs of n consecutive units (n drawn in min_units..max_units, lowered to what the windows have):
-        poses ``[N, n, 32, 25, 2]`` and music features ``[N, n, 32, 29]``, or None when no window has min_units."""
+        poses ``[N, n, 32, 25, 2]`` and music features ``[N, n, 32, 28]``, or None when no window has min_units."""
         c = self.config
         poses, features = batch.poses.detach().cpu().numpy(), batch.features.detach().cpu().numpy()
         runs = [(k, r) for k, rs in enumerate(self.window_runs(poses)) for r in rs if len(r) >= c.min_units]
@@ -532,7 +510,7 @@ class Dancing2MusicMethod(Stage1Method):
         return p, f
 
     def style_feature(self, feature_units: torch.Tensor) -> torch.Tensor:
-        """Style feature s ``[N, style_hidden]`` of the music under ``[N, n, 32, 29]`` units."""
+        """Style feature s ``[N, style_hidden]`` of the music under ``[N, n, 32, 28]`` units."""
         return self.style(feature_units.flatten(1, 2))[1]
 
     def _composition_step(self, batch: Batch) -> dict[str, float]:
@@ -594,7 +572,7 @@ class Dancing2MusicMethod(Stage1Method):
         return self.g_dan(self.e_std(style, self._randn((1, c.noise_dim), generator)), count)[0]
 
     def dance_units(self, feature_units: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
-        """Eq. 11: units ``[n, 32, 25, 2]`` for ``[n, 32, 29]`` feature units, decoded one after another; the first
+        """Eq. 11: units ``[n, 32, 25, 2]`` for ``[n, 32, 28]`` feature units, decoded one after another; the first
         starts from a prior sample of z_ini, each next one from the previous unit's last frame (encoded by E_ini).
 
         Units are drawn in groups (max_units composed together, or one at a time from the prior). As in the
@@ -642,7 +620,7 @@ class Dancing2MusicMethod(Stage1Method):
     @torch.no_grad()
     def generate(self, features: torch.Tensor, beats: torch.Tensor,
                  generator: torch.Generator | None = None) -> torch.Tensor:
-        """``[B, T, 29]`` features and ``[B, T]`` beat flags -> ``[B, T, 25, 2]`` model-coordinate dances.
+        """``[B, T, 28]`` features and ``[B, T]`` beat flags -> ``[B, T, 25, 2]`` model-coordinate dances.
 
         The beat warper lays the units on each song's beat frames; a song needs at least two. Noise (the initial
         pose, the style-to-dance noise) is drawn from ``generator``.

@@ -8,7 +8,6 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import ROOT
 from stage1_pose.models.base import Batch
 from stage1_pose.models.dancing2music import dance_units as du
-from stage1_pose.models.dancing2music.features import FEATURE_DIM, SOUND_COLUMNS
 from stage1_pose.models.dancing2music.model import (
     DANCING2MUSIC_PRESETS,
     POSE_DIM,
@@ -50,7 +49,7 @@ def _dance(frames: int, period: float, phase: float = 0.0) -> np.ndarray:
 
 def _batch(b: int = 4, frames: int = 240) -> Batch:
     poses = np.stack([_dance(frames, 15.0 + k, k) for k in range(b)])
-    features = np.random.default_rng(1).normal(size=(b, frames, FEATURE_DIM)).astype(np.float32)
+    features = np.random.default_rng(1).normal(size=(b, frames, 28)).astype(np.float32)
     beats = torch.zeros(b, frames, dtype=torch.bool)
     return Batch(torch.from_numpy(features), beats, torch.from_numpy(poses), torch.arange(b) % 3)
 
@@ -85,7 +84,7 @@ def test_network_shapes():
     assert m.g_uni(mu_i, mu_m).shape == (6, du.UNIT_FRAMES, POSE_DIM)
     anchor = torch.randn(6, POSE_DIM)
     assert torch.allclose(m.g_uni(mu_i, mu_m, anchor)[:, 0], anchor, atol=1e-5)
-    logits, s = m.style(torch.randn(6, 50, FEATURE_DIM))
+    logits, s = m.style(torch.randn(6, 50, 28))
     assert logits.shape == (6, 3) and s.shape == (6, TINY.style_hidden)
     z_movs = torch.randn(2, 4, TINY.z_mov)
     mu_d, _ = m.e_mtd(z_movs)
@@ -93,7 +92,7 @@ def test_network_shapes():
     assert m.g_dan(mu_d, 5).shape == (2, 5, TINY.z_mov)
     assert m.e_std(torch.randn(2, TINY.style_hidden), torch.randn(2, TINY.noise_dim)).shape == (2, TINY.z_dan)
     assert m.e_sty(mu_d).shape == (2, TINY.style_hidden)
-    assert m.d_mov(z_movs, torch.randn(2, 4, du.UNIT_FRAMES, FEATURE_DIM)).shape == (2,)
+    assert m.d_mov(z_movs, torch.randn(2, 4, du.UNIT_FRAMES, 28)).shape == (2,)
     assert m.d_dan(mu_d).shape == (2, 1)
 
 
@@ -161,7 +160,7 @@ def test_training_steps_cover_both_phases(trained):
 
 
 def test_generation_length_and_seeds(trained):
-    features = torch.from_numpy(np.random.default_rng(2).normal(size=(2, 97, FEATURE_DIM)).astype(np.float32))
+    features = torch.from_numpy(np.random.default_rng(2).normal(size=(2, 97, 28)).astype(np.float32))
     beats = _beat_flags(97, np.arange(3.0, 97.0, 7.0), np.arange(1.0, 97.0, 8.5))
 
     def gen(seed):
@@ -176,7 +175,7 @@ def test_generation_length_and_seeds(trained):
 
 def test_one_style_for_the_whole_song(trained):
     # A real song's intro and its rest, styled group by group, were danced at different speeds.
-    features = np.random.default_rng(3).normal(size=(1, 480, FEATURE_DIM)).astype(np.float32)
+    features = np.random.default_rng(3).normal(size=(1, 480, 28)).astype(np.float32)
     features[:, 240:] = features[:, 240:] * 3 + 2
     features = torch.from_numpy(features)
     beats = _beat_flags(480, np.arange(2.0, 480.0, 8.0))
@@ -196,14 +195,13 @@ def test_one_style_for_the_whole_song(trained):
 
 def test_a_song_without_two_beats_is_refused_with_a_hint(trained):
     with pytest.raises(DancesynthError, match="fewer than two beats"):
-        trained.generate(torch.zeros(1, 60, FEATURE_DIM), _beat_flags(60, np.array([30.0])),
-                         torch.Generator().manual_seed(0))
+        trained.generate(torch.zeros(1, 60, 28), _beat_flags(60, np.array([30.0])), torch.Generator().manual_seed(0))
 
 
 def test_real_unit_motion_is_learned_and_still_draws_are_redrawn(trained):
     whole_dances = _batch().poses.flatten(2)
     assert float(trained.unit_motion) == pytest.approx(unit_motion(whole_dances), rel=0.3)
-    feature_units = torch.zeros(7, du.UNIT_FRAMES, FEATURE_DIM)
+    feature_units = torch.zeros(7, du.UNIT_FRAMES, 28)
     saved_config, saved_motion = trained.config, trained.unit_motion.clone()
     try:
         trained.config = replace(TINY, redraw_tries=1)
@@ -235,7 +233,7 @@ def test_model_before_composition_generates_from_the_prior(trained):
     fresh = Dancing2MusicMethod(TINY).eval()
     assert not fresh.composes and trained.composes
     beats = _beat_flags(60, np.arange(0, 60, 8.0))
-    out = fresh.generate(torch.zeros(1, 60, FEATURE_DIM), beats, torch.Generator().manual_seed(0))
+    out = fresh.generate(torch.zeros(1, 60, 28), beats, torch.Generator().manual_seed(0))
     assert out.shape == (1, 60, 25, 2)
 
 
@@ -243,32 +241,31 @@ def test_ablation_without_composition_draws_movements_from_the_prior():
     torch.manual_seed(0)
     model = Dancing2MusicMethod(replace(TINY, composition=False, decomp_epochs=TINY.epochs)).eval()
     beats = _beat_flags(80, np.arange(2, 80, 9.0))
-    out = model.generate(torch.zeros(1, 80, FEATURE_DIM), beats, torch.Generator().manual_seed(3))
+    out = model.generate(torch.zeros(1, 80, 28), beats, torch.Generator().manual_seed(3))
     assert out.shape == (1, 80, 25, 2) and torch.isfinite(out).all()
 
 
 def test_both_phases_train_through_the_shared_trainer(tiny_stage1_dataset, tmp_path):
     import shutil
 
-    from stage1_pose.features import cache_name
     from stage1_pose.generate import generate_from_features, load_pose_model
     from stage1_pose.train import TrainerConfig, train
 
     data = tmp_path / "data"
     shutil.copytree(tiny_stage1_dataset, data)
-    feats = data / "features" / cache_name("dancing2music")
+    feats = data / "features" / "dancing2music"
     feats.mkdir(parents=True, exist_ok=True)  # another test may have computed them in the shared dataset
     rng = np.random.default_rng(0)
     for clip in (data / "poses").glob("*.npz"):
-        np.save(feats / f"{clip.stem}.npy", rng.standard_normal((120, FEATURE_DIM)).astype(np.float32))
+        np.save(feats / f"{clip.stem}.npy", rng.standard_normal((120, 28)).astype(np.float32))
     overrides = dict(gru_hidden=16, mlp_hidden=16, z_mov=8, z_dan=8, noise_dim=4, min_units=1, max_units=2,
                      window_frames=120, batch_size=2, epochs=2, decomp_epochs=1)
     meta = train("dancing2music", data, tmp_path / "run", overrides=overrides, device="cpu",
                  options=TrainerConfig(preview_every=0))
     assert meta["epoch"] == 2 and min(meta["curriculum"]["phase_steps"]) >= 1
     model = load_pose_model(tmp_path / "run", "cpu")
-    dance = generate_from_features(model, rng.standard_normal((75, FEATURE_DIM)).astype(np.float32),
-                                   np.arange(0, 5, 0.5), seed=1)
+    dance = generate_from_features(model, rng.standard_normal((75, 28)).astype(np.float32), np.arange(0, 5, 0.5),
+                                   seed=1)
     assert dance.keypoints.shape == (75, 25, 3)
 
 
@@ -284,36 +281,3 @@ def test_relative_movement_codes_ignore_where_a_unit_starts():
     np.testing.assert_allclose(mu.numpy(), mu_shifted.numpy(), atol=1e-5)
     # The decoder's displacements are motion_scale times smaller than its raw outputs: a fresh model moves little.
     assert (decoded - decoded[:, :1]).abs().max() < 0.2
-
-
-def test_style_swap_teaches_the_classifier_to_read_the_tempo_when_the_sound_disagrees():
-    # A recorded song sounds like none of the built-in styles; its tracked tempo is what transfers.
-    torch.manual_seed(0)
-    model = Dancing2MusicMethod(replace(TINY, style_swap=0.5))
-    model._optimizers = model.configure_optimizers()
-    rng = np.random.default_rng(4)
-    sound = rng.normal(0, 1, (3, SOUND_COLUMNS))
-
-    def windows(sound_style: np.ndarray, tempo_style: np.ndarray) -> torch.Tensor:
-        x = rng.normal(0, 0.3, (len(sound_style), 64, FEATURE_DIM))
-        x[..., :SOUND_COLUMNS] += sound[sound_style][:, None]
-        x[..., SOUND_COLUMNS] += (tempo_style - 1.0)[:, None]
-        return torch.from_numpy(x.astype(np.float32))
-
-    base = _batch(12, 64)
-    for _ in range(150):
-        style = torch.from_numpy(rng.integers(0, 3, 12))
-        batch = Batch(windows(style.numpy(), style.numpy()), base.beats, base.poses, style)
-        logs = model.training_step(batch, 0)
-    assert logs["style_acc"] == 1.0
-    with torch.no_grad():
-        logits, _ = model.style(windows(np.array([0, 0, 1, 2]), np.array([2, 1, 0, 0])))
-    assert logits.argmax(-1).tolist() == [2, 1, 0, 0]
-
-
-def test_the_tempo_column_reads_the_beats():
-    from stage1_pose.models.dancing2music.features import tempo_value
-
-    assert tempo_value(np.arange(0, 10, 0.5)) == pytest.approx(0.0)
-    assert tempo_value(np.arange(0, 10, 0.25)) == pytest.approx(1.0)
-    assert tempo_value(np.array([1.0])) == 0.0
