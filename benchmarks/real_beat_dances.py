@@ -133,7 +133,8 @@ def main() -> None:
     rng = np.random.default_rng(0)
     summary = {}
     if args.per_song:
-        print(f"{'model':22s} {'song':28s} {'bpm':>4s}  vmin hit/chance+-2  d2m hit/chance+-2  end/start")
+        print(f"{'model':22s} {'song':28s} {'bpm':>4s}  " + "  ".join(f"{d} hit/chance+-{t}" for d in DEFINITIONS
+                                                                     for t in TOLERANCES) + "  end/start")
     timings = list(TIMINGS) if args.snap == "both" else [args.snap]
     runs = [(f"{name} {timing}", run, TIMINGS[timing])
             for name, run in zip(row_names([str(m) for m in args.models], set()), args.models) for timing in timings]
@@ -148,9 +149,10 @@ def main() -> None:
             row = {k: float(np.nanmean([s[k] for s in per_seed])) for k in per_seed[0]}
             rows.append(row)
             if args.per_song:
-                print(f"{name:22s} {info['id']:28s} {info['bpm']:4.0f}  "
-                      f"{row['vmin_hit2']:8.2f}/{row['vmin_chance2']:.2f}  "
-                      f"{row['d2m_hit2']:8.2f}/{row['d2m_chance2']:.2f}  {row['end_over_start']:9.2f}", flush=True)
+                cells = "  ".join(f"{row[f'{d}_hit{t}']:13.2f}/{row[f'{d}_chance{t}']:.2f}" for d in DEFINITIONS
+                                  for t in TOLERANCES)
+                print(f"{name:22s} {info['id']:28s} {info['bpm']:4.0f}  {cells}  {row['end_over_start']:9.2f}",
+                      flush=True)
         summary[name] = rows
     shortest = min(len(y) for _, y in songs) / SR
     print(f"\n{len(songs)} songs x {args.seconds:.0f} s (shortest {shortest:.0f} s), seeds {args.seeds}; per song the "

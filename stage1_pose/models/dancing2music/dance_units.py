@@ -136,14 +136,23 @@ def beat_grid(music_beats: np.ndarray, num_frames: int, stride: float = 1) -> np
 
 def beat_stride(music_beats: np.ndarray, dance_interval: float) -> float:
     """Music beats per dance beat, so the dance beats come about every ``dance_interval`` frames (the typical
-    kinematic beat interval seen in training): ``round(dance_interval / music interval)`` when the dance is
-    slower than the music's pulse, ``1 / round(music interval / dance_interval)`` when it is faster (a unit, four
-    dance beats, then lasts as long as it did in training, instead of being stretched over four music beats)."""
+    kinematic beat interval seen in training): the whole number ``n`` of music beats per dance beat when the dance
+    is slower than the music's pulse, ``1 / n`` (dancing on the ``n``-th parts of a beat) when it is faster (a unit,
+    four dance beats, then lasts about as long as it did in training, instead of being stretched over four music
+    beats). ``n`` is the nearest in ratio: a tempo that is 1.45x off is nearer 2x than 1x, and the warper then
+    never plays units more than sqrt(2)x slower than they were learnt between a stride and the next."""
     beats = np.asarray(music_beats, dtype=np.float64)
     if len(beats) < 2:
         return 1.0
     ratio = dance_interval / float(np.median(np.diff(beats)))
-    return float(max(1, round(ratio))) if ratio >= 1 else 1.0 / max(1, round(1.0 / ratio))
+    return float(_nearest_in_ratio(ratio)) if ratio >= 1 else 1.0 / _nearest_in_ratio(1.0 / ratio)
+
+
+def _nearest_in_ratio(ratio: float) -> int:
+    """The whole number ``n >= 1`` nearest ``ratio`` (>= 1) in ratio: ``n`` or ``n + 1``, split at their geometric
+    mean."""
+    n = max(1, int(np.floor(ratio)))
+    return n if ratio <= np.sqrt(n * (n + 1)) else n + 1
 
 
 def units_needed(grid: np.ndarray) -> int:

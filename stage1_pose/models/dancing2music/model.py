@@ -92,6 +92,11 @@ class Dancing2MusicConfig:
     ``song_style`` (not in the paper; generation only) gives every group of units the mean of the groups' style
     features, one style for the whole song: decided group by group, a real song's intro and its rest got different
     styles, and the intro was danced at about twice the speed of the rest.
+    ``chain_weight`` > 0 (not in the paper) adds the reconstruction of every real unit that follows another,
+    decoded from the last frame of its predecessor's reconstruction, as at test time
+    (:meth:`Dancing2MusicMethod.decomposition_losses`): decoded only from true first frames, the units' small errors
+    added up along a song, the body folded (mean joint distance from the nose down by a quarter over 3 minutes) and
+    the units slowed down.
     """
 
     feature_dim: int = 28
@@ -132,6 +137,7 @@ class Dancing2MusicConfig:
     speed_weight: float = 0.0
     stage_seconds: float = 0.0
     song_style: bool = False
+    chain_weight: float = 0.0
 
     def __post_init__(self) -> None:
         if not 1 <= self.min_units <= self.max_units:
@@ -163,7 +169,8 @@ _PAPER = Dancing2MusicConfig()
 _SMALL = Dancing2MusicConfig(gru_hidden=128, mlp_hidden=128, z_mov=32, z_dan=32, noise_dim=16, lr=3e-3,
                              batch_size=32, epochs=420, decomp_epochs=180, relative_movement=True, motion_scale=20.0,
                              warp_stretch=2.0, beat_accent=0.3, kinematic_output=True, epoch_windows=288,
-                             speed_weight=5.0, stage_seconds=2.0, song_style=True)
+                             speed_weight=5.0, stage_seconds=2.0, song_style=True,
+                             chain_weight=1.0, redraw_tries=30)
 DANCING2MUSIC_PRESETS: dict[str, Dancing2MusicConfig] = {
     "paper": _PAPER,
     "small": _SMALL,
@@ -442,8 +449,12 @@ class Dancing2MusicMethod(Stage1Method):
 
     # --- DU-VAE -----------------------------------------------------------------------------------------------
 
-    def decomposition_losses(self, units: torch.Tensor) -> dict[str, torch.Tensor]:
-        """Eq. 3-5 on ``[N, 32, 25, 2]`` units: ``recon``, ``kl``, ``shift`` and the weighted ``total``."""
+    def decomposition_losses(self, units: torch.Tensor, follows: torch.Tensor | None = None) -> dict[str, torch.Tensor]:
+        """Eq. 3-5 on ``[N, 32, 25, 2]`` units: ``recon``, ``kl``, ``shift``, ``chain`` and the weighted ``total``.
+
+        ``follows`` (``[P]`` indices ``i``: unit ``i + 1`` continues unit ``i`` in the same dance) feeds ``chain``:
+        unit ``i + 1`` decoded from the last frame of unit ``i``'s reconstruction (detached) against the real one,
+        its root moved to start there; the units' random shifts differ, the dance's path does not."""
         c = self.config
         if self.g_uni.kinematics is not None:
             self.g_uni.kinematics.observe(units)
@@ -468,12 +479,20 @@ class Dancing2MusicMethod(Stage1Method):
         else:
             mov_shifted = self.e_mov(shift_root(u, self.random_shift(units.shape[0], units.device)).flatten(2))
         shift = F.l1_loss(self.g_uni(z_ini, reparameterize(*mov_shifted), anchor), flat)
-        total = recon + c.w_kl * kl + c.w_shift * shift
+        chain = torch.zeros((), device=units.device)
+        if follows is not None and len(follows):
+            anchor_next = decoded[follows, -1].detach()
+            target = u[follows + 1].clone()
+            target[:, :, ROOT] += (anchor_next.unflatten(-1, (NUM_JOINTS, 2))[:, ROOT] - target[:, 0, ROOT])[:, None]
+            chained = self.g_uni(reparameterize(*self.e_ini(anchor_next)),
+                                 reparameterize(mu_m[follows + 1], lv_m[follows + 1]), anchor_next)
+            chain = F.l1_loss(chained, target.flatten(2))
+        total = recon + c.w_kl * kl + c.w_shift * shift + c.chain_weight * chain
         if c.speed_weight:
             total = total + c.speed_weight * speed_loss(decoded.unflatten(-1, (NUM_JOINTS, 2)), u)
         if self.g_uni.kinematics is not None:
             total = total + self.g_uni.kinematics.take_penalty()
-        return {"recon": recon, "kl": kl, "shift": shift, "total": total}
+        return {"recon": recon, "kl": kl, "shift": shift, "chain": chain, "total": total}
 
     def _decomposition_step(self, batch: Batch) -> dict[str, float]:
         logits, _ = self.style(batch.features)
@@ -486,7 +505,10 @@ class Dancing2MusicMethod(Stage1Method):
         if not units:
             return logs | {"units": 0.0}
         real = torch.from_numpy(np.concatenate(units)).to(batch.poses.device)
-        losses = self.decomposition_losses(real)
+        # Within a run unit i + 1 starts where unit i ends; the last unit of a run has no successor.
+        starts = np.cumsum([0] + [len(run) for run in units])
+        follows = torch.from_numpy(np.concatenate([np.arange(a, b - 1) for a, b in zip(starts[:-1], starts[1:])]))
+        losses = self.decomposition_losses(real, follows.to(batch.poses.device) if self.config.chain_weight else None)
         self.optimize("vae", losses["total"])
         self.phase_steps[0] += 1
         self.unit_motion += (unit_motion(real.flatten(2)) - self.unit_motion) / self.phase_steps[0]
@@ -571,19 +593,23 @@ class Dancing2MusicMethod(Stage1Method):
             return self._randn((count, c.z_mov), generator)
         return self.g_dan(self.e_std(style, self._randn((1, c.noise_dim), generator)), count)[0]
 
-    def dance_units(self, feature_units: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
+    def dance_units(self, feature_units: torch.Tensor, generator: torch.Generator | None,
+                    tempo_scale: float = 1.0) -> torch.Tensor:
         """Eq. 11: units ``[n, 32, 25, 2]`` for ``[n, 32, 28]`` feature units, decoded one after another; the first
         starts from a prior sample of z_ini, each next one from the previous unit's last frame (encoded by E_ini).
 
         Units are drawn in groups (max_units composed together, or one at a time from the prior). As in the
         authors' test code, a group whose motion stays below ``redraw_motion`` times the real units' mean motion
-        is drawn again, up to ``redraw_tries`` draws, keeping the liveliest. Each group's style feature is read
-        once, from its own units, or with ``song_style`` as the mean of all groups' style features.
+        is drawn again, up to ``redraw_tries`` draws, keeping the liveliest. ``tempo_scale`` is the song's dance
+        beat interval over the training one (frames per frames): above 1 the warper plays the units that much slower
+        than they were learnt, so the floor rises by it and holds for the motion as danced (below 1 it stays: a unit
+        must be lively in itself). Each group's style feature is read once, from its own units, or with
+        ``song_style`` as the mean of all groups' style features.
         """
         c = self.config
         z_ini = self._randn((1, c.z_ini), generator)
         anchor = None
-        floor = c.redraw_motion * float(self.unit_motion)
+        floor = c.redraw_motion * float(self.unit_motion) * max(1.0, tempo_scale)
         size = c.max_units if self.composes else 1
         starts = range(0, len(feature_units), size)
         styles = [self.style_feature(feature_units[None, start:start + size]) if self.composes else None
@@ -637,7 +663,8 @@ class Dancing2MusicMethod(Stage1Method):
             full = np.concatenate([grid, grid[-1] + extra])
             spans = np.stack([full[4 * k:4 * k + 5] for k in range(n)])
             feature_units = torch.from_numpy(du.cut_units(feats, spans)).to(features.device)
-            units = self.dance_units(feature_units, generator).cpu().numpy()
+            tempo_scale = float(np.median(np.diff(grid))) / float(self.beat_interval)
+            units = self.dance_units(feature_units, generator, tempo_scale).cpu().numpy()
             unit_beats = None  # the paper's warper: the normalised beat frames
             if self.config.warp_stretch > 1:
                 moves = kinematic_beats(absolute_positions(units.reshape(-1, NUM_JOINTS, 2)), self.config.fps)

@@ -124,6 +124,10 @@ def test_beat_grid_covers_song_and_strides():
     np.testing.assert_allclose(np.diff(du.beat_grid(beats, 60, stride=2)), 15.0)
     # A dancer whose kinematic beats come twice per music beat dances on the half beats, music beats included.
     assert du.beat_stride(beats, 3.5) == 0.5
+    # The stride nearest in ratio: 1.45x off is nearer 2x than 1x (the split is sqrt(2), not 1.5).
+    assert du.beat_stride(beats, 7.5 * 1.45) == 2 and du.beat_stride(beats, 7.5 * 1.4) == 1
+    assert du.beat_stride(beats, 7.5 / 1.45) == 0.5 and du.beat_stride(beats, 7.5 / 1.4) == 1
+    assert du.beat_stride(beats, 7.5 * 2.5) == 3  # 2.5 > sqrt(2 * 3)
     half = du.beat_grid(beats, 60, stride=0.5)
     np.testing.assert_allclose(np.diff(half), 3.75)
     assert set(beats) <= set(half) and half[0] <= 0 and half[-1] >= 59

@@ -138,19 +138,22 @@ def test_a_dancer_who_walks_off_keeps_their_place_and_their_steps():
     assert torch.equal(kept[:, :ROOT], dance[:, :ROOT]) and torch.equal(kept[:, ROOT + 1:], dance[:, ROOT + 1:])
 
 
-def test_tiny_du_vae_learns_to_reconstruct_units():
+def test_tiny_du_vae_learns_to_reconstruct_units_and_to_continue_its_own():
     torch.manual_seed(0)
     model = Dancing2MusicMethod(TINY)
     model._optimizers = model.configure_optimizers()
     poses = _dance(200, 15.0)
     beats = np.arange(2, 190, 7.5)
     units = torch.from_numpy(du.cut_units(poses, du.unit_runs(beats, 3, 20)[0]))
-    first = model.decomposition_losses(units)["recon"].item()
-    for _ in range(150):
-        model.optimize("vae", model.decomposition_losses(units)["total"])
-    last = model.decomposition_losses(units)["recon"].item()
-    assert last < first / 4, (first, last)
-    assert last < 0.1
+    follows = torch.arange(len(units) - 1)  # one run: every unit but the last has a successor
+    first = model.decomposition_losses(units, follows)
+    for _ in range(300):
+        model.optimize("vae", model.decomposition_losses(units, follows)["total"])
+    last = model.decomposition_losses(units, follows)
+    assert last["recon"].item() < min(0.1, first["recon"].item() / 4), (first, last)
+    # The chained unit starts from a reconstructed frame, not the true one: it learns to rejoin the real dance.
+    assert last["chain"].item() < first["chain"].item() / 2, (first, last)
+    assert model.decomposition_losses(units)["chain"].item() == 0.0
 
 
 def test_training_steps_cover_both_phases(trained):
@@ -220,6 +223,27 @@ def test_real_unit_motion_is_learned_and_still_draws_are_redrawn(trained):
     assert unit_motion(best[first_group].flatten(2)) > unit_motion(once[first_group].flatten(2))
     with pytest.raises(DancesynthError, match="redraw"):
         replace(TINY, redraw_tries=0)
+
+
+def test_the_redraw_floor_rises_for_a_song_danced_slower_than_training(trained):
+    feature_units = torch.zeros(7, du.UNIT_FRAMES, 28)
+    first_group = slice(0, TINY.max_units)
+    saved_config, saved_motion = trained.config, trained.unit_motion.clone()
+    try:
+        trained.config = replace(TINY, redraw_tries=8)
+        trained.unit_motion.fill_(0.0)
+        first_draw = trained.dance_units(feature_units, torch.Generator().manual_seed(5))
+        # The floor sits just below the first draw's motion: at the training tempo it passes at once.
+        trained.unit_motion.fill_(0.9 * unit_motion(first_draw[first_group].flatten(2)) / TINY.redraw_motion)
+        same_tempo = trained.dance_units(feature_units, torch.Generator().manual_seed(5))
+        half_tempo = trained.dance_units(feature_units, torch.Generator().manual_seed(5), tempo_scale=2.0)
+        double_tempo = trained.dance_units(feature_units, torch.Generator().manual_seed(5), tempo_scale=0.5)
+    finally:
+        trained.config = saved_config
+        trained.unit_motion.copy_(saved_motion)
+    assert torch.equal(same_tempo[first_group], first_draw[first_group])
+    assert torch.equal(double_tempo[first_group], first_draw[first_group])  # played faster: the floor stays
+    assert unit_motion(half_tempo[first_group].flatten(2)) > unit_motion(first_draw[first_group].flatten(2))
 
 
 def test_runs_saved_before_the_redraw_threshold_load_without_redraws(trained):
