@@ -139,8 +139,8 @@ def beat_stride(music_beats: np.ndarray, dance_interval: float) -> float:
     kinematic beat interval seen in training): the whole number ``n`` of music beats per dance beat when the dance
     is slower than the music's pulse, ``1 / n`` (dancing on the ``n``-th parts of a beat) when it is faster (a unit,
     four dance beats, then lasts about as long as it did in training, instead of being stretched over four music
-    beats). ``n`` is the nearest in ratio: a tempo that is 1.45x off is nearer 2x than 1x, and the warper then
-    never plays units more than sqrt(2)x slower than they were learnt between a stride and the next."""
+    beats). ``n`` is the nearest in ratio (a tempo 1.45x off is nearer 2x than 1x), so the warper plays the units
+    at most sqrt(2)x faster or slower than they were learnt."""
     beats = np.asarray(music_beats, dtype=np.float64)
     if len(beats) < 2:
         return 1.0
