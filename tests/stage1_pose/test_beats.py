@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from dancesynth.core.media import load_song
+from stage1_pose import beats
 from stage1_pose.beats import DANCE_MAX_BPM, beat_times, beats_on_frames, dance_tempo, onset_strength, tempo
 
 REAL_SONG = Path(__file__).parents[1] / "data" / "real_song" / "escape_from_chaosland_40-65s"
@@ -29,6 +30,27 @@ def test_click_track_at_odd_sample_rate():
         i = int(b * sr)
         y[i:i + 200] = np.sin(2 * np.pi * 100 * np.arange(200) / sr)
     assert mir_eval.beat.f_measure(reference, beat_times(y, sr)) >= 0.9
+
+
+def test_a_steady_kick_wins_over_a_slightly_stronger_unrelated_hat_tempo(monkeypatch):
+    """Kicks at 95 BPM under hi-hats at 126 BPM loud enough that 126 scores a little higher in the tempograms: the
+    beats tracked at each close tempo decide, and the kicks' beats sit on the stronger onsets."""
+    sr, seconds = 22050, 30.0
+    t = np.arange(int(seconds * sr)) / sr
+    y = np.zeros_like(t)
+    kicks = np.arange(0.0, seconds - 0.2, 60 / 95)
+    for b in kicks:
+        i = int(b * sr)
+        y[i:i + 3300] += np.sin(2 * np.pi * 60 * t[:3300]) * np.exp(-t[:3300] / 0.0375)
+    rng = np.random.default_rng(0)
+    for b in np.arange(0.11, seconds - 0.1, 60 / 126):
+        i = int(b * sr)
+        y[i:i + 661] += 0.28 * rng.standard_normal(661) * np.exp(-t[:661] / 0.008)
+    y = y.astype(np.float32)
+    assert tempo(y, sr) == 95.0
+    assert mir_eval.beat.f_measure(kicks, beat_times(y, sr)) >= 0.9
+    monkeypatch.setattr(beats, "_TEMPO_TIE", 0.0)  # the tempograms alone pick the hats
+    assert tempo(y, sr) == 126.0
 
 
 def test_real_rock_recording_beats_and_tempo():
