@@ -505,10 +505,12 @@ class Dancing2MusicMethod(Stage1Method):
         if not units:
             return logs | {"units": 0.0}
         real = torch.from_numpy(np.concatenate(units)).to(batch.poses.device)
-        # Within a run unit i + 1 starts where unit i ends; the last unit of a run has no successor.
-        starts = np.cumsum([0] + [len(run) for run in units])
-        follows = torch.from_numpy(np.concatenate([np.arange(a, b - 1) for a, b in zip(starts[:-1], starts[1:])]))
-        losses = self.decomposition_losses(real, follows.to(batch.poses.device) if self.config.chain_weight else None)
+        follows = None
+        if self.config.chain_weight:
+            # Within a run unit i + 1 starts where unit i ends; the last unit of a run has no successor.
+            ends = np.cumsum([len(run) for run in units])
+            follows = torch.from_numpy(np.setdiff1d(np.arange(ends[-1]), ends - 1)).to(batch.poses.device)
+        losses = self.decomposition_losses(real, follows)
         self.optimize("vae", losses["total"])
         self.phase_steps[0] += 1
         self.unit_motion += (unit_motion(real.flatten(2)) - self.unit_motion) / self.phase_steps[0]
