@@ -26,6 +26,7 @@ and the song's beats ``[B, T]`` (bool beat frames), which the beat warper follow
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
@@ -88,10 +89,15 @@ class Dancing2MusicConfig:
     (:func:`~stage1_pose.models.kinematics.speed_loss`): the L1 reconstruction alone decodes about half the real motion.
     ``stage_seconds`` > 0 (not in the paper) keeps a generated dance where it started (:func:`keep_on_stage`): the
     units are shift-invariant (Eq. 4), so nothing holds the dancer in place, and chained units carried a small
-    sideways step each, which over a 3-minute song walked the dancer 1,243 px across a 1,280-px canvas.
+    sideways step each, which over a 3-minute song walked the dancer 1,243 px across a 1,280-px canvas. With it,
+    E_ini also reads each chained pose as if it stood where the dance began (:meth:`Dancing2MusicMethod._posture_code`).
     ``song_style`` (not in the paper; generation only) gives every group of units the mean of the groups' style
     features, one style for the whole song: decided group by group, a real song's intro and its rest got different
     styles, and the intro was danced at about twice the speed of the rest.
+    ``steady_energy`` > 0 (not in the paper; generation only) holds the song's energy: the median motion of the
+    first group's first draws sets a target (at least the floor times ``exp(steady_energy)``), and every group is
+    drawn again until its motion lies within a factor ``exp(steady_energy)`` of it, keeping the nearest draw: each
+    group drew its energy on its own, and 10-s stretches of one dance moved at 0.6-1.8x the real speed.
     ``chain_weight`` > 0 (not in the paper) adds the reconstruction of every real unit that follows another,
     decoded from the last frame of its predecessor's reconstruction, as at test time
     (:meth:`Dancing2MusicMethod.decomposition_losses`): decoded only from true first frames, the units' small errors
@@ -138,6 +144,7 @@ class Dancing2MusicConfig:
     stage_seconds: float = 0.0
     song_style: bool = False
     chain_weight: float = 0.0
+    steady_energy: float = 0.0
 
     def __post_init__(self) -> None:
         if not 1 <= self.min_units <= self.max_units:
@@ -170,7 +177,7 @@ _SMALL = Dancing2MusicConfig(gru_hidden=128, mlp_hidden=128, z_mov=32, z_dan=32,
                              batch_size=32, epochs=420, decomp_epochs=180, relative_movement=True, motion_scale=20.0,
                              warp_stretch=2.0, beat_accent=0.3, kinematic_output=True, epoch_windows=288,
                              speed_weight=5.0, stage_seconds=2.0, song_style=True,
-                             chain_weight=1.0, redraw_tries=30)
+                             chain_weight=1.0, redraw_tries=30, redraw_motion=0.6, steady_energy=0.2)
 DANCING2MUSIC_PRESETS: dict[str, Dancing2MusicConfig] = {
     "paper": _PAPER,
     "small": _SMALL,
@@ -209,6 +216,17 @@ def keep_on_stage(dance: torch.Tensor, sigma: float) -> torch.Tensor:
     out = dance.clone()
     out[:, ROOT] = root - slow + slow[:1]
     return out
+
+
+# Draws of a song's first group that set its energy for ``steady_energy``.
+_ENERGY_PROBE = 8
+
+
+def _band_miss(motion: float, band: tuple[float, float]) -> float:
+    """How far (log ratio, 0 inside) a group's motion lies outside ``band`` = (lowest, highest) motion."""
+    low, high = band
+    motion = max(motion, 1e-12)
+    return math.log(low / motion) if motion < low else math.log(motion / high) if motion > high else 0.0
 
 
 def unit_motion(units: torch.Tensor) -> float:
@@ -605,12 +623,14 @@ class Dancing2MusicMethod(Stage1Method):
         is drawn again, up to ``redraw_tries`` draws, keeping the liveliest. ``tempo_scale`` is the song's dance
         beat interval over the training one (frames per frames): above 1 the warper plays the units that much slower
         than they were learnt, so the floor rises by it and holds for the motion as danced (below 1 it stays: a unit
-        must be lively in itself). Each group's style feature is read once, from its own units, or with
-        ``song_style`` as the mean of all groups' style features.
+        must be lively in itself). With ``steady_energy`` a group is also drawn again while its motion lies outside
+        the song's band (see :class:`Dancing2MusicConfig`). Each group's style feature is read once, from its own
+        units, or with ``song_style`` as the mean of all groups' style features.
         """
         c = self.config
         z_ini = self._randn((1, c.z_ini), generator)
         anchor = None
+        home = self.g_uni.initial(z_ini).view(NUM_JOINTS, 2)[ROOT] if c.stage_seconds > 0 else None
         floor = c.redraw_motion * float(self.unit_motion) * max(1.0, tempo_scale)
         size = c.max_units if self.composes else 1
         starts = range(0, len(feature_units), size)
@@ -618,32 +638,48 @@ class Dancing2MusicMethod(Stage1Method):
                   for start in starts]
         if c.song_style and self.composes:
             styles = [torch.stack(styles).mean(0)] * len(styles)
+        band = None  # (lowest, highest) motion a group may have; only the floor until the song's energy is known
         groups = []
         for start, style in zip(starts, styles):
             count = len(feature_units[start:start + size])
-            best, best_motion = None, -1.0
+            draws = []  # (units, motion)
             for _ in range(c.redraw_tries):
-                codes = self.movement_codes(count, style, generator)
-                units = self._decode_group(z_ini, anchor, codes)
-                motion = unit_motion(units)
-                if motion > best_motion:
-                    best, best_motion = units, motion
-                if motion >= floor:
+                units = self._decode_group(z_ini, anchor, self.movement_codes(count, style, generator), home)
+                draws.append((units, unit_motion(units)))
+                if band is None and c.steady_energy > 0:
+                    if len(draws) < min(_ENERGY_PROBE, c.redraw_tries):
+                        continue
+                    # The first group's draws tell the song's energy; the band sits above the floor.
+                    target = max(float(np.median([d[1] for d in draws])), floor * np.exp(c.steady_energy))
+                    band = (target * np.exp(-c.steady_energy), target * np.exp(c.steady_energy))
+                if _band_miss(draws[-1][1], band or (floor, np.inf)) == 0:
                     break
+            best = min(draws, key=lambda d: _band_miss(d[1], band or (floor, np.inf)))[0]
             groups.append(best)
             anchor = best[-1:, -1]
-            z_ini = self.e_ini(anchor)[0]
+            z_ini = self._posture_code(anchor, home)
         return torch.cat(groups).view(len(feature_units), du.UNIT_FRAMES, NUM_JOINTS, 2)
 
-    def _decode_group(self, z_ini: torch.Tensor, anchor: torch.Tensor | None, z_movs: torch.Tensor) -> torch.Tensor:
+    def _decode_group(self, z_ini: torch.Tensor, anchor: torch.Tensor | None, z_movs: torch.Tensor,
+                      home: torch.Tensor | None) -> torch.Tensor:
         """Units ``[n, 32, 50]`` from ``[n, z_mov]`` codes, continuing from ``anchor`` (``[1, 50]`` or None)."""
         units = []
         for z_mov in z_movs:
             unit = self.g_uni(z_ini, z_mov[None], anchor)
             units.append(unit[0])
             anchor = unit[:, -1]
-            z_ini = self.e_ini(anchor)[0]
+            z_ini = self._posture_code(anchor, home)
         return torch.stack(units)
+
+    def _posture_code(self, pose: torch.Tensor, home: torch.Tensor | None) -> torch.Tensor:
+        """z_ini ``[1, z_ini]`` (E_ini's mean) of a ``[1, 50]`` pose, read with its root at ``home`` (``[2]``, model
+        units) unless None: E_ini reads where the root is, and the units' small steps, which add up along a song,
+        took z_ini ever further from its prior (norm 2.4 to 12.9 over 3 minutes) and the dance's motion down."""
+        if home is not None:
+            pose = pose.view(-1, NUM_JOINTS, 2).clone()
+            pose[:, ROOT] = home
+            pose = pose.flatten(1)
+        return self.e_ini(pose)[0]
 
     @torch.no_grad()
     def generate(self, features: torch.Tensor, beats: torch.Tensor,

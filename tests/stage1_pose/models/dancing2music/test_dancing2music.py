@@ -21,7 +21,8 @@ from stage1_pose.models.dancing2music.model import (
 
 # Free joint positions: these tests follow the paper's units (the small preset's kinematic output has its own tests).
 TINY = replace(DANCING2MUSIC_PRESETS["small"], gru_hidden=32, mlp_hidden=32, z_mov=8, z_dan=8, noise_dim=4,
-               lr=3e-3, epochs=2, decomp_epochs=1, kinematic_output=False, epoch_windows=0, speed_weight=0.0)
+               lr=3e-3, epochs=2, decomp_epochs=1, kinematic_output=False, epoch_windows=0, speed_weight=0.0,
+               steady_energy=0.0)  # the redraw tests read the floor alone; steady energy has its own test
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -244,6 +245,36 @@ def test_the_redraw_floor_rises_for_a_song_danced_slower_than_training(trained):
     assert torch.equal(same_tempo[first_group], first_draw[first_group])
     assert torch.equal(double_tempo[first_group], first_draw[first_group])  # played faster: the floor stays
     assert unit_motion(half_tempo[first_group].flatten(2)) > unit_motion(first_draw[first_group].flatten(2))
+
+
+def test_a_dance_continues_the_same_way_wherever_its_units_have_walked(trained):
+    codes = torch.randn(4, TINY.z_mov, generator=torch.Generator().manual_seed(1))
+    z_ini = torch.zeros(1, TINY.z_ini)
+    with torch.no_grad():
+        start = trained.g_uni.initial(z_ini)
+        home = start.view(25, 2)[ROOT]
+        step = torch.tensor([[4.0, 1.0]])
+        walked = shift_root(start.view(1, 1, 25, 2), step).flatten(2)[:, 0]
+        here = trained._decode_group(z_ini, start, codes, home)
+        there = trained._decode_group(z_ini, walked, codes, home)
+        unaware = trained._decode_group(z_ini, walked, codes, None)  # E_ini reading the root too
+    expected = shift_root(here.view(4, du.UNIT_FRAMES, 25, 2), step.expand(4, 2)).flatten(2)
+    assert torch.allclose(there, expected, atol=1e-5)
+    assert not torch.allclose(unaware, expected, atol=1e-3)
+
+
+def test_steady_energy_keeps_every_group_of_a_long_song_near_the_songs_energy():
+    torch.manual_seed(0)
+    fresh = Dancing2MusicMethod(TINY).eval()  # before composition: one unit per group, codes from the prior
+    feature_units = torch.zeros(24, du.UNIT_FRAMES, 28)
+    dances = {}
+    for band in (0.0, 0.05):
+        fresh.config = replace(TINY, redraw_tries=30, steady_energy=band)
+        with torch.no_grad():
+            units = fresh.dance_units(feature_units, torch.Generator().manual_seed(5))
+        motions = [unit_motion(unit[None].flatten(2)) for unit in units]
+        dances[band] = max(motions) / min(motions)
+    assert dances[0.05] <= np.exp(2 * 0.05) + 1e-6 < 1.5 < dances[0.0]
 
 
 def test_runs_saved_before_the_redraw_threshold_load_without_redraws(trained):
