@@ -638,7 +638,8 @@ class Dancing2MusicMethod(Stage1Method):
                   for start in starts]
         if c.song_style and self.composes:
             styles = [torch.stack(styles).mean(0)] * len(styles)
-        band = None  # (lowest, highest) motion a group may have; only the floor until the song's energy is known
+        band = (floor, np.inf)  # (lowest, highest) motion a group may have
+        energy_known = c.steady_energy == 0
         groups = []
         for start, style in zip(starts, styles):
             count = len(feature_units[start:start + size])
@@ -646,15 +647,16 @@ class Dancing2MusicMethod(Stage1Method):
             for _ in range(c.redraw_tries):
                 units = self._decode_group(z_ini, anchor, self.movement_codes(count, style, generator), home)
                 draws.append((units, unit_motion(units)))
-                if band is None and c.steady_energy > 0:
+                if not energy_known:
                     if len(draws) < min(_ENERGY_PROBE, c.redraw_tries):
                         continue
                     # The first group's draws tell the song's energy; the band sits above the floor.
                     target = max(float(np.median([d[1] for d in draws])), floor * np.exp(c.steady_energy))
                     band = (target * np.exp(-c.steady_energy), target * np.exp(c.steady_energy))
-                if _band_miss(draws[-1][1], band or (floor, np.inf)) == 0:
+                    energy_known = True
+                if _band_miss(draws[-1][1], band) == 0:
                     break
-            best = min(draws, key=lambda d: _band_miss(d[1], band or (floor, np.inf)))[0]
+            best = min(draws, key=lambda d: _band_miss(d[1], band))[0]
             groups.append(best)
             anchor = best[-1:, -1]
             z_ini = self._posture_code(anchor, home)
