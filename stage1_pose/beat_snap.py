@@ -13,11 +13,12 @@ as the papers do. It generalises Dancing2Music's warper (which stretches its dan
 3. The retiming (output time -> source time) is a monotone cubic through the anchors (C1: no speed jumps), and
    the dance is read at the retimed instants in its raw form — root position and bone vectors, cubic in time,
    bone lengths linear — so bones keep their lengths.
-4. An accent then reshapes the timing within every beat interval, the beats themselves fixed: playback starts
-   slowly after a beat, runs faster mid-beat and stops sharply on the next (a share ``accent`` of each interval's
-   timing follows a Beta(2, 1.5) distribution function, the rest stays linear; the mean rate is 1). The body then
-   loses its motion within a frame or two of the beat, so that Dancing2Music's kinematic beats (motion lost per
-   frame, which peaks mid-deceleration, before the stop) land on the beat as well as the velocity minima.
+4. An accent then reshapes the timing within every beat interval, the beats themselves fixed: the body holds
+   briefly after a beat, then moves faster and arrives at speed on the next, stopping within the last frame (a share
+   ``accent`` of each interval's timing follows a Beta(2, 1.2) distribution function, the rest stays linear; the
+   mean rate is 1). The body then loses its motion in the frame into the beat, so that Dancing2Music's kinematic
+   beats (motion lost per frame, which peak mid-deceleration, before the stop) land on the beat as well as the
+   velocity minima.
 
 Poses are in model coordinates (:func:`dancesynth.core.skeleton.normalize`), ``[T, 25, 2]``; beats in pose
 frames (fractional: seconds x fps).
@@ -36,9 +37,10 @@ from scipy.special import betainc
 from dancesynth.core.motion import velocity_minimum_beats
 from stage1_pose.models.kinematics import absolute_positions, bone_vectors, forward_kinematics, joint_lengths
 
-# Beta(a, b) distribution function of the accent: a = 2 starts each beat interval at rest, b = 1.5 < 2 ends it on
-# a steeper stop than it started from.
-ACCENT_SHAPE = (2.0, 1.5)
+# Beta(a, b) distribution function of the accent: a = 2 starts each beat interval at rest; b = 1.2 keeps the speed up
+# until the last frame before the next beat (b = 1.5 spread the stop over two or three frames, and Dancing2Music's
+# kinematic beats fired that early).
+ACCENT_SHAPE = (2.0, 1.2)
 
 
 @dataclass(frozen=True)
@@ -50,7 +52,7 @@ class BeatSnap:
     max_rate: float = 1.5
     # Retiming moves the smoothed speed's minima a little; each pass snaps what the previous one left off the beat.
     passes: int = 3
-    accent: float = 0.5
+    accent: float = 0.8
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.accent <= 1.0:
@@ -131,8 +133,8 @@ def snap_to_beats(poses: np.ndarray, beat_frames: np.ndarray, fps: float,
 
 def accent_times(frames: int, beat_frames: np.ndarray, accent: float) -> np.ndarray:
     """``[frames]`` output frame -> frame of the unaccented dance to show there: identity before the first and after
-    the last beat and on every beat; between two beats a blend, ``accent`` : ``1 - accent``, of the Beta(2, 1.5)
-    distribution function and the identity over the interval (slow after a beat, a sharp stop on the next)."""
+    the last beat and on every beat; between two beats a blend, ``accent`` : ``1 - accent``, of the Beta(2, 1.2)
+    distribution function and the identity over the interval (a hold after a beat, a sharp stop on the next)."""
     t = np.arange(frames, dtype=np.float64)
     b = np.asarray(beat_frames, np.float64).ravel()
     b = np.unique(b[(b > 0) & (b < frames - 1)])

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from stage1_pose.features import ANALYSIS_SR, log_mel, num_pose_frames, onset_envelope, resample_audio
+from stage1_pose.features import ANALYSIS_SR, N_FFT, log_mel, num_pose_frames, onset_envelope, resample_audio
 
 # Beat tracking runs at 22050 Hz with an 11.6 ms hop. Choices measured on benchmarks/beat_benchmark.py (real
 # recordings and rendered MIDI pieces with known beats) and on the built-in synthetic songs.
@@ -47,6 +47,9 @@ _TIGHTNESS = 400.0
 _SWING_RATIO = 2.0
 # Tempo for dancing: above this, dancers step on every other beat (half time); the built-in styles span 60-135.
 DANCE_MAX_BPM = 140.0
+# librosa's onset strength (centred) is delayed by half an analysis window, although log_mel's frames are centred on
+# their times already: the beats were 40 ms late on the real-music benchmark's exact MIDI grids (librosa#1052).
+_ENVELOPE_DELAY = N_FFT // (2 * _BEAT_HOP) * _BEAT_HOP / _BEAT_SR
 # Onset strength per pose frame is analysed with an 8.3 ms hop at ANALYSIS_SR: finer than any pose frame rate in use.
 _ONSET_HOP = 128
 
@@ -151,8 +154,9 @@ def track_beats(samples: np.ndarray, sr: int) -> tuple[float, np.ndarray]:
                                          tightness=_TIGHTNESS, units="frames")[1]
         tracks.append((float(phase[frames].mean()) if len(frames) else -np.inf, bpm, frames))
     _, bpm, frames = max(tracks, key=lambda track: track[0])
-    beats = librosa.frames_to_time(frames, sr=_BEAT_SR, hop_length=_BEAT_HOP)
-    return bpm, _unswing(np.asarray(beats, dtype=np.float64), full)
+    beats = _unswing(np.asarray(librosa.frames_to_time(frames, sr=_BEAT_SR, hop_length=_BEAT_HOP), np.float64), full)
+    beats = beats - _ENVELOPE_DELAY
+    return bpm, beats[beats >= 0]
 
 
 def beat_times(samples: np.ndarray, sr: int) -> np.ndarray:

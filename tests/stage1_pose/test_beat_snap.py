@@ -50,7 +50,7 @@ def test_a_dance_already_on_the_beats_is_left_as_it_is_and_no_beats_change_nothi
     np.testing.assert_array_equal(snap_to_beats(poses, np.zeros(0), FPS), poses)
 
 
-def test_the_accent_stops_the_body_sharply_on_each_beat_keeping_the_beats_and_the_speed():
+def test_the_accent_holds_after_each_beat_and_stops_in_the_frame_into_it_keeping_the_beats_and_the_speed():
     poses = swinging_arms(240, stop_offset=0.0)
     beats = np.arange(0.0, 240, BEAT_FRAMES)
     plain = snap_to_beats(poses, beats, FPS, BeatSnap(accent=0.0))
@@ -58,12 +58,17 @@ def test_the_accent_stops_the_body_sharply_on_each_beat_keeping_the_beats_and_th
     inner = beats[1:-1].astype(int)
     np.testing.assert_allclose(accented[inner], plain[inner], atol=1e-9)  # on the beats: the same poses
 
-    def into_beats(dance):
-        """Speed over the frame into each beat, as a share of the beat interval's top speed."""
+    def around_beats(dance):
+        """Speed lost in the frame into each beat, and speed over the frame after it, as shares of the beat
+        interval's top speed."""
         speed = joint_speeds(absolute_positions(dance), FPS).mean(axis=1)  # [t]: frame t -> t + 1
-        return np.mean([speed[b - 1] / speed[b - int(BEAT_FRAMES):b].max() for b in inner])
+        top = [speed[b - int(BEAT_FRAMES):b].max() for b in inner]
+        return (np.mean([(speed[b - 2] - speed[b - 1]) / m for b, m in zip(inner, top)]),
+                np.mean([speed[b] / m for b, m in zip(inner, top)]))
 
-    assert into_beats(accented) < 0.8 * into_beats(plain)  # 0.14 against 0.20 of the top speed
+    (lost_plain, after_plain), (lost, after) = around_beats(plain), around_beats(accented)
+    assert lost > 1.2 * lost_plain  # 0.54 against 0.37 of the top speed
+    assert after < 0.5 * after_plain  # 0.02 against 0.20
     speed = mean_speed(absolute_positions(accented), FPS) / mean_speed(absolute_positions(plain), FPS)
     assert 0.95 < speed < 1.05
 

@@ -73,5 +73,5 @@ def test_shipped_model_dances_on_the_true_beats_of_a_real_recording():
             over_chance[name, definition] = hit - chance
     # Share of movement beats within one frame of a true beat, over chance: the retiming is what puts the stops
     # there, and its accent what puts Dancing2Music's kinematic beats (motion lost per frame) there too.
-    assert over_chance["retimed", "stops"] >= 0.2 > over_chance["own timing", "stops"], over_chance
-    assert over_chance["retimed", "d2m"] >= 0.25 > over_chance["no accent", "d2m"], over_chance
+    assert over_chance["retimed", "stops"] >= 0.5 > over_chance["own timing", "stops"], over_chance  # 0.63, 0.30
+    assert over_chance["retimed", "d2m"] >= 0.35 > over_chance["no accent", "d2m"], over_chance  # 0.43, 0.08
