@@ -165,8 +165,9 @@ def beat_times(samples: np.ndarray, sr: int) -> np.ndarray:
     Tempo from the full-band and kick-band onset tempograms (beat and two-beat lags, a wide prior around 120 BPM),
     then librosa's dynamic-programming tracker on the onsets under 2 kHz plus the kick band (bass notes removed);
     when other tempi, not octaves, score within 5 % of the best, each is tracked and the beats on the strongest
-    onsets win; last a swing check that moves beats off swung off-beats. Beats are at the song's own metrical level (the
-    tempo to dance at is :func:`dance_tempo`).
+    onsets win; last a swing check that moves beats off swung off-beats, and the times taken back by the onset
+    envelope's delay (half an analysis window). Beats are at the song's own metrical level (the tempo to dance at is
+    :func:`dance_tempo`).
     """
     return track_beats(samples, sr)[1]
 
