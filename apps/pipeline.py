@@ -32,7 +32,7 @@ from stage2_video.cache import appearance_model_for
 from stage2_video.composite import Compositor, scene_compositor
 from stage2_video.framing import Framing, label_map
 from stage2_video.models.pix2pixhd import affordable_preset
-from stage2_video.render import load_appearance_model, render_frames, target_poses
+from stage2_video.render import load_appearance_model, render_layers, target_poses
 from stage2_video.retarget import retarget_onto
 
 # Minutes of appearance training a --target gets in all unless told otherwise.
@@ -106,13 +106,15 @@ def output_size(canvas: tuple[int, int], height: int | None) -> tuple[int, int]:
     return width + width % 2, height + height % 2
 
 
-def _output_frames(rendered: Iterable[np.ndarray], poses: PoseSequence, framings: list[Framing],
-                   compositor: Compositor | None, labels: bool) -> Iterator[tuple[np.ndarray, np.ndarray | None]]:
-    """(output frame, skeleton label or None) per rendered model-resolution frame: composited into the scene
-    unless ``compositor`` is None (the crop itself); the label, at the same size, only when ``labels``."""
-    for keypoints, framing, frame in zip(poses.keypoints, framings, rendered):
+def _output_frames(rendered: Iterable[tuple[np.ndarray, np.ndarray | None]], poses: PoseSequence,
+                   framings: list[Framing], compositor: Compositor | None,
+                   labels: bool) -> Iterator[tuple[np.ndarray, np.ndarray | None]]:
+    """(output frame, skeleton label or None) per rendered frame and its coverage (:func:`render_layers`):
+    composited into the scene unless ``compositor`` is None (the crop itself); the label, at the same size, only
+    when ``labels``. ``framings``: each rendered frame's framing."""
+    for keypoints, framing, (frame, coverage) in zip(poses.keypoints, framings, rendered):
         if compositor is not None:
-            frame = compositor.frame(frame, keypoints, framing)
+            frame = compositor.frame(frame, keypoints, framing, coverage)
         label = None
         if labels:
             label = label_map(keypoints, framing) if compositor is None else compositor.skeleton(keypoints)
@@ -169,8 +171,8 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
     poses = target_poses(appearance, poses)
     framings = appearance.framing.frames(poses)
     compositor = None if crop else scene_compositor(video_model, output_size(appearance.canvas, height))
-    width, out_height = ((appearance.config.width, appearance.config.height) if compositor is None
-                         else compositor.size)
+    width, out_height = ((appearance.scale * appearance.config.width, appearance.scale * appearance.config.height)
+                         if compositor is None else compositor.size)
     outputs = [(Path(out), width)]
     if skeleton_preview is not None:
         outputs.append((Path(skeleton_preview), width))
@@ -182,8 +184,10 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
                                                      audio_sr=SONG_SAMPLE_RATE))
                    for path, w in outputs]
         started = time.perf_counter()
-        rendered = render_frames(appearance, poses, normalize=False, framings=framings)
-        for frame, label in track(read_ahead(_output_frames(rendered, poses, framings, compositor, len(writers) > 1)),
+        rendered = render_layers(appearance, poses, normalize=False, framings=framings)
+        output_framings = [appearance.output_framing(f) for f in framings]
+        for frame, label in track(read_ahead(_output_frames(rendered, poses, output_framings, compositor,
+                                                            len(writers) > 1)),
                                   total=len(poses), desc="rendering", unit="frame", disable=not progress):
             writers[0].write(frame)
             if skeleton_preview is not None:

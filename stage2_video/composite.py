@@ -307,7 +307,8 @@ class Compositor:
         return out
 
     def _uncrop(self, generated: np.ndarray, f: Framing) -> np.ndarray:
-        """The generated image without padding, resampled onto the region: ``[rh, rw, 3]`` uint8."""
+        """The generated image (or a single-channel map) without padding, resampled onto the region:
+        ``[rh, rw, 3]`` (``[rh, rw]``), same dtype."""
         inner = generated[f.pad_y:f.pad_y + f.inner_height, f.pad_x:f.pad_x + f.inner_width]
         ax, ay = f.crop_width / f.inner_width * self.sx, f.crop_height / f.inner_height * self.sy
         x0, y0, x1, y1 = self.region(f)
@@ -347,15 +348,20 @@ class Compositor:
             ramps.append(ramp)
         return ramps[1][:, None] * ramps[0][None, :]
 
-    def frame(self, generated: np.ndarray, keypoints: np.ndarray, framing: Framing) -> np.ndarray:
+    def frame(self, generated: np.ndarray, keypoints: np.ndarray, framing: Framing,
+              coverage: np.ndarray | None = None) -> np.ndarray:
         """One generated ``[model height, model width, 3]`` uint8 frame, the ``[25, 3]`` pose (canvas pixels)
         it was rendered from and the framing its label map was drawn in -> ``[height, width, 3]`` uint8 frame of
-        the scene at the output size."""
+        the scene at the output size. ``coverage`` (``[model height, model width]`` float32 in [0, 1], e.g. a
+        warped prior's alpha) widens the blend mask to where the person's own pixels reach."""
         out = self.plate.copy()
         x0, y0, x1, y1 = self.region(framing)
         if x1 <= x0 or y1 <= y0:
             return out
         a = self.alpha(np.asarray(keypoints, np.float32), framing)
+        if coverage is not None:
+            reach = np.clip(self._uncrop(np.asarray(coverage, np.float32), framing), 0.0, 1.0)
+            a = np.maximum(a, reach * self._edge_fade(EDGE_FADE * self.torso, framing))
         out[y0:y1, x0:x1] = cv2.blendLinear(self._uncrop(generated, framing), out[y0:y1, x0:x1], a, 1.0 - a)
         return out
 

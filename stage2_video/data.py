@@ -21,6 +21,7 @@ from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import cv2
 import numpy as np
 import torch
 from torch.utils.data import Dataset
@@ -31,8 +32,12 @@ from dancesynth.core.media import probe_video, read_frames
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence
 from stage2_video.framing import Framing, VideoFraming, condition, usable_frames
+from stage2_video.prior import FrameBank, PriorRenderer, bank_keypoints, scaled_framing
 
 POSES_FILE = "poses.npz"
+# While a frame is learnt, the frame bank returns no frame within this many seconds of it: the network must learn
+# to repair a warp of another moment, as at render time, not to copy its target.
+EXCLUDE_SECONDS = 1.0
 # A target video's person must score this many times any other person's prominence when first found.
 TARGET_MIN_LEAD = 1.25
 KEY_SUFFIX = ".key"
@@ -169,29 +174,64 @@ def split_ranges(num_frames: int, val_fraction: float) -> tuple[range, range]:
     return range(0, num_frames - n_val), range(num_frames - n_val, num_frames)
 
 
+def frame_bank(frames: np.ndarray, masks: np.ndarray, poses: PoseSequence, bank_framing: VideoFraming,
+               members: range) -> FrameBank:
+    """The :class:`FrameBank` of a target: its ``[T, H, W, 3]`` frames and ``[T, H, W]`` person masks framed by
+    ``bank_framing`` (the model's framing at the prior's scale), holding the frames of ``members`` (the training
+    range) whose pose is usable and whose mask is not empty."""
+    usable = usable_frames(poses)
+    kept = [t for t in members if usable[t] and masks[t].any()]
+    if not kept:
+        raise DancesynthError("The person is found in too few frames of the target video to learn from; use a "
+                              "video where one person stays fully visible.")
+    return FrameBank(frames, masks, bank_keypoints(poses.keypoints, bank_framing.frames(poses)), np.array(kept))
+
+
+def prior_images(renderer: PriorRenderer, keypoints: np.ndarray, bank_framing: Framing, plate: np.ndarray,
+                 model_size: tuple[int, int], frame: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The warped prior of one ``[25, 3]`` pose (canvas pixels) framed by ``bank_framing``, over that framing's
+    crop of the ``[H, W, 3]`` ``plate``: ``[h2, w2, 4]`` uint8 at the bank's size (RGB over the plate, alpha) and
+    the same resized to ``model_size`` (width, height). ``frame``: the video frame being learnt (excluded)."""
+    target = bank_framing.points(np.asarray(keypoints, np.float32)[:, :2])
+    pose = np.c_[target, np.asarray(keypoints, np.float32)[:, 2]]
+    high = renderer(pose, bank_framing.image(plate), frame)
+    return high, cv2.resize(high, model_size, interpolation=cv2.INTER_AREA)
+
+
 @dataclass
 class TargetVideo:
     """Framed frames and poses of the target video; ``framings[t]`` framed frame t, ``usable[t]`` says whether
     frame t is fit to learn from (:func:`usable_frames`); ``plate`` is the scene's background (canvas size) for
-    models conditioned on it, else None."""
+    models conditioned on it, else None; ``bank`` the frame bank for models conditioned on the warped prior
+    (:mod:`stage2_video.prior`), framed by ``framing`` at ``prior_scale`` times the model's size."""
 
     frames: np.ndarray
     poses: PoseSequence
     framing: VideoFraming
     plate: np.ndarray | None = None
+    bank: FrameBank | None = None
+    prior_scale: int = 1
     framings: list[Framing] = field(init=False)
+    bank_framings: list[Framing] = field(init=False)
     usable: np.ndarray = field(init=False)
 
     def __post_init__(self) -> None:
         self.framings = self.framing.frames(self.poses)
+        self.bank_framings = scaled_framing(self.framing, self.prior_scale).frames(self.poses)
         self.usable = usable_frames(self.poses)
+
+    def renderer(self) -> PriorRenderer | None:
+        """A fresh prior renderer that never retrieves frames near the one being learnt (None without a bank)."""
+        if self.bank is None:
+            return None
+        return PriorRenderer(self.bank, exclude_frames=round(EXCLUDE_SECONDS * self.poses.fps))
 
 
 class FramePairs(Dataset):
     """Consecutive (previous, current) training pairs inside one frame range, both frames usable.
 
     Item: ``(cond_prev, frame_prev, cond_cur, frame_cur)``, float32 in [-1, 1]: frames ``[3, H, W]``, conditions
-    ``[C, H, W]`` (the label map, + the background crop; :func:`stage2_video.framing.condition`).
+    ``[C, H, W]`` (the label map, + the background crop, + the warped prior; :func:`stage2_video.framing.condition`).
     """
 
     def __init__(self, target: TargetVideo, frames: range) -> None:
@@ -201,11 +241,18 @@ class FramePairs(Dataset):
     def __len__(self) -> int:
         return len(self.starts)
 
-    def item(self, t: int) -> tuple[torch.Tensor, torch.Tensor]:
-        """Condition and frame of frame ``t``."""
-        label = condition(self.target.poses.keypoints[t], self.target.framings[t], self.target.plate)
-        return to_tensor(label), to_tensor(self.target.frames[t])
+    def item(self, t: int, renderer: PriorRenderer | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """Condition and frame of frame ``t``; ``renderer`` carries the retrieval over from the previous frame."""
+        target = self.target
+        prior = None
+        if target.bank is not None:
+            frame = target.frames[t]
+            prior = prior_images(renderer or target.renderer(), target.poses.keypoints[t], target.bank_framings[t],
+                                 target.plate, (frame.shape[1], frame.shape[0]), frame=t)[1]
+        label = condition(target.poses.keypoints[t], target.framings[t], target.plate, prior)
+        return to_tensor(label), to_tensor(target.frames[t])
 
     def __getitem__(self, i: int) -> tuple[torch.Tensor, ...]:
         t = self.starts[i]
-        return (*self.item(t), *self.item(t + 1))
+        renderer = self.target.renderer()
+        return (*self.item(t, renderer), *self.item(t + 1, renderer))

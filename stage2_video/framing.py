@@ -78,15 +78,16 @@ class Framing:
         return out
 
     def image(self, frame: np.ndarray) -> np.ndarray:
-        """``[H, W, 3]`` uint8 frame of the canvas -> ``[out_height, out_width, 3]`` uint8 model image."""
+        """``[H, W, 3]`` (or ``[H, W]``) uint8 frame of the canvas -> ``[out_height, out_width, 3]`` (or
+        ``[out_height, out_width]``) uint8 model image."""
         h, w = frame.shape[:2]
-        crop = np.zeros((self.crop_height, self.crop_width, 3), np.uint8)
+        crop = np.zeros((self.crop_height, self.crop_width, *frame.shape[2:]), np.uint8)
         sx0, sy0 = max(self.x0, 0), max(self.y0, 0)
         sx1, sy1 = min(self.x0 + self.crop_width, w), min(self.y0 + self.crop_height, h)
         if sx1 > sx0 and sy1 > sy0:
             crop[sy0 - self.y0:sy1 - self.y0, sx0 - self.x0:sx1 - self.x0] = frame[sy0:sy1, sx0:sx1]
         inner = cv2.resize(crop, (self.inner_width, self.inner_height), interpolation=cv2.INTER_AREA)
-        out = np.zeros((self.out_height, self.out_width, 3), np.uint8)
+        out = np.zeros((self.out_height, self.out_width, *frame.shape[2:]), np.uint8)
         out[self.pad_y:self.pad_y + self.inner_height, self.pad_x:self.pad_x + self.inner_width] = inner
         return out
 
@@ -224,9 +225,14 @@ def label_maps(seq: PoseSequence, framing: Framing) -> Iterator[np.ndarray]:
         yield label_map(keypoints, framing)
 
 
-def condition(keypoints: np.ndarray, framing: Framing, plate: np.ndarray | None = None) -> np.ndarray:
+def condition(keypoints: np.ndarray, framing: Framing, plate: np.ndarray | None = None,
+              prior: np.ndarray | None = None) -> np.ndarray:
     """What the model draws one frame from: ``[out_height, out_width, 3]`` uint8 label map of the ``[25, 3]``
     pose, followed (``[..., 6]``) by the same framing's crop of the ``[H, W, 3]`` background ``plate`` when
-    given."""
-    label = label_map(keypoints, framing)
-    return label if plate is None else np.concatenate([label, framing.image(plate)], axis=2)
+    given, and by the ``[out_height, out_width, 4]`` warped prior when given (``[..., 10]``)."""
+    parts = [label_map(keypoints, framing)]
+    if plate is not None:
+        parts.append(framing.image(plate))
+    if prior is not None:
+        parts.append(prior)
+    return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=2)

@@ -3,7 +3,10 @@
 Poses from elsewhere are first normalised onto the target's canvas (:mod:`stage2_video.normalize`, with the
 target statistics stored in the model's JSON), then framed like the training frames, drawn as label maps
 and fed through the generator one frame at a time (each frame conditions the next), so memory stays flat
-for any length.
+for any length. A model conditioned on the warped prior (:mod:`stage2_video.prior`) also warps the person's own
+pixels from its frame bank onto each pose at ``prior_scale`` times its resolution; the network's correction (its
+RGB and mask) is upsampled and painted over that, so frames come out at the prior's size. Before its first
+training step such a model renders the warped prior alone.
 """
 
 from __future__ import annotations
@@ -18,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+import torch.nn.functional as F
 from torch import nn
 
 from dancesynth.core.checkpoint import POINTER, load_checkpoint, run_file_contents
@@ -29,10 +33,19 @@ from dancesynth.core.media import VideoWriter
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import BODY25_LIMBS, PoseSequence
 from stage2_video.composite import load_plate
-from stage2_video.data import to_image, to_tensor
+from stage2_video.data import POSES_FILE, frame_bank, frames_file, prior_images, split_ranges, to_image, to_tensor
 from stage2_video.framing import Framing, VideoFraming, condition, framing_from_dict
-from stage2_video.models.pix2pixhd import IMAGE_CHANNELS, Pix2PixHD, Pix2PixHDConfig, generator_channels
+from stage2_video.masks import masks_file
+from stage2_video.models.pix2pixhd import (
+    IMAGE_CHANNELS,
+    Pix2PixHD,
+    Pix2PixHDConfig,
+    blend,
+    blend_base,
+    generator_channels,
+)
 from stage2_video.normalize import BodyStats, fit_normalization
+from stage2_video.prior import FrameBank, PriorRenderer, scaled_framing
 from stage2_video.train import KIND
 from stage2_video.winograd import winograd_generator
 
@@ -125,7 +138,8 @@ def optimize_generator(generator: nn.Module, in_channels: int, width: int, heigh
 class AppearanceModel:
     """A trained generator with what rendering needs from its run folder."""
 
-    generator: Callable[[torch.Tensor], torch.Tensor]
+    # None: a model conditioned on the warped prior that has not trained yet (it renders the prior alone)
+    generator: Callable[[torch.Tensor], torch.Tensor] | None
     config: Pix2PixHDConfig
     framing: VideoFraming
     target_stats: BodyStats | None
@@ -136,15 +150,70 @@ class AppearanceModel:
     bone_lengths: np.ndarray | None = None
     # [H, W, 3] uint8 background plate at the canvas size, for models conditioned on it (config.background)
     plate: np.ndarray | None = None
+    # the target's frame bank, for models conditioned on the warped prior (config.prior)
+    bank: FrameBank | None = None
+
+    @property
+    def scale(self) -> int:
+        """Rendered frames are this many times the model's resolution (the warped prior's scale)."""
+        return self.config.prior_scale if self.config.prior else 1
+
+    def output_framing(self, framing: Framing) -> Framing:
+        """The framing rendered frames have for a frame whose label map is drawn in ``framing``."""
+        return scaled_framing(framing, self.scale)
 
     @torch.inference_mode()
     def step(self, cond: np.ndarray, previous: torch.Tensor | None) -> torch.Tensor:
         """``[H, W, C]`` uint8 condition (:func:`stage2_video.framing.condition`) + previous output ->
-        ``[1, 3, H, W]`` frame in [-1, 1]."""
+        ``[1, 3, H, W]`` frame in [-1, 1] (for a model conditioned on the warped prior, its raw ``[1, 4, H, W]``
+        output: RGB and mask, see :func:`stage2_video.models.pix2pixhd.blend`)."""
         x = to_tensor(cond)[None].to(self.device)
         if self.config.temporal:
             x = torch.cat([x, x.new_zeros(1, IMAGE_CHANNELS, *x.shape[2:]) if previous is None else previous], dim=1)
         return self.generator(x)
+
+    @torch.inference_mode()
+    def step_with_prior(self, cond: np.ndarray, prior: np.ndarray,
+                        previous: torch.Tensor | None) -> tuple[torch.Tensor, np.ndarray, np.ndarray]:
+        """One frame of a model conditioned on the warped prior.
+
+        Args:
+            cond: ``[h, w, C]`` uint8 condition at the model's size (its last four channels the prior).
+            prior: ``[scale h, scale w, 4]`` uint8 warped prior over the plate and its alpha at the output size.
+            previous: the previous frame at the model's size (``[1, 3, h, w]``), or None.
+
+        Returns:
+            ``[1, 3, h, w]`` frame at the model's size (the next step's ``previous``), the ``[scale h, scale w, 3]``
+            uint8 output frame and its ``[scale h, scale w]`` float32 coverage in [0, 1] (where the person may be:
+            the warp's alpha, or the network's mask where larger).
+        """
+        high = torch.from_numpy(np.ascontiguousarray(prior)).to(self.device).permute(2, 0, 1)[None].float()
+        base_high, alpha = high[:, :IMAGE_CHANNELS].div(127.5).sub(1.0), high[:, IMAGE_CHANNELS:].div(255.0)
+        if self.generator is None:
+            low = blend_base(to_tensor(cond)[None].to(self.device), True)
+            frame_high, coverage = base_high, alpha
+        else:
+            raw = self.step(cond, previous).to(self.device)
+            low, _ = blend(raw, blend_base(to_tensor(cond)[None].to(self.device), True))
+            raw_high = F.interpolate(raw, size=prior.shape[:2], mode="bilinear", align_corners=False)
+            frame_high, mask = blend(raw_high, base_high)
+            coverage = torch.maximum(alpha, mask)
+        return low, to_image(frame_high[0]), coverage[0, 0].cpu().numpy()
+
+
+def _bank(run_dir: Path, config: Pix2PixHDConfig, framing: VideoFraming) -> FrameBank:
+    """The frame bank of a run conditioned on the warped prior, from its cached frames, masks and poses."""
+    bank_framing = scaled_framing(framing, config.prior_scale)
+    paths = [run_dir / name for name in (frames_file(bank_framing), masks_file(bank_framing), POSES_FILE)]
+    missing = [p.name for p in paths if not p.is_file()]
+    if missing:
+        raise DancesynthError(f"{run_dir} lacks {', '.join(missing)}, which the model's frame bank is made of; "
+                              "train it again with `dancesynth train-video --resume` to rebuild them.")
+    poses = PoseSequence.load(paths[2])
+    frames, masks = np.load(paths[0], mmap_mode="r"), np.load(paths[1], mmap_mode="r")
+    if len(frames) != len(poses) or len(masks) != len(poses):
+        raise ValueError(f"the frame bank holds {len(frames)} frames and {len(masks)} masks for {len(poses)} poses")
+    return frame_bank(frames, masks, poses, bank_framing, split_ranges(len(poses), config.val_fraction)[0])
 
 
 def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", optimize: bool = True,
@@ -154,8 +223,9 @@ def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", opti
     (:func:`dancesynth.core.device.resolve_precision`)."""
     dev = resolve_device(device)
     dtype = resolve_precision(precision, dev)
-    state_dict, meta = load_checkpoint(Path(run_dir), KIND)
-    with run_file_contents(Path(run_dir) / POINTER):
+    run_dir = Path(run_dir)
+    state_dict, meta = load_checkpoint(run_dir, KIND)
+    with run_file_contents(run_dir / POINTER):
         config = config_from_dict(Pix2PixHDConfig, meta["config"])
         model = Pix2PixHD(config)
         model.load_state_dict(state_dict)
@@ -169,14 +239,20 @@ def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", opti
         lengths = np.asarray(meta["bone_lengths"], np.float64) if meta.get("bone_lengths") is not None else None
         if lengths is not None and lengths.shape != (len(BODY25_LIMBS),):
             raise ValueError(f"bone_lengths has shape {lengths.shape}, not [{len(BODY25_LIMBS)}]")
-    generator = model.generator.eval().to(dev)
-    if optimize:
+        untrained = int(meta.get("step", 1)) == 0
+        bank = _bank(run_dir, config, framing) if config.prior else None
+    # A prior model's network gives RGB and mask, painted over the prior at the output size (step_with_prior).
+    generator = model.generator.inner if config.prior else model.generator
+    generator = generator.eval().to(dev)
+    if config.prior and untrained:
+        generator = None
+    elif optimize:
         generator = optimize_generator(generator, generator_channels(config), config.width, config.height, dev, dtype)
     elif dtype != torch.float32:
         generator = _Autocast(generator, dtype)
     plate = load_plate(run_dir) if config.background else None
     return AppearanceModel(generator, config, framing, stats, fps, dev, (canvas_width, canvas_height),
-                           bone_lengths=lengths, plate=plate)
+                           bone_lengths=lengths, plate=plate, bank=bank)
 
 
 def target_poses(model: AppearanceModel, poses: PoseSequence, normalize: bool = True) -> PoseSequence:
@@ -189,15 +265,32 @@ def target_poses(model: AppearanceModel, poses: PoseSequence, normalize: bool = 
     return fit_normalization(poses, model.target_stats).apply(poses)
 
 
-def render_frames(model: AppearanceModel, poses: PoseSequence, normalize: bool = True,
-                  framings: list[Framing] | None = None) -> Iterator[np.ndarray]:
-    """Yield one ``[height, width, 3]`` uint8 RGB frame (model resolution) per pose, in order; frame t is drawn
-    in ``framings[t]`` (default: the model's framing of the poses, ``model.framing.frames``)."""
+def render_layers(model: AppearanceModel, poses: PoseSequence, normalize: bool = True,
+                  framings: list[Framing] | None = None) -> Iterator[tuple[np.ndarray, np.ndarray | None]]:
+    """Yield per pose, in order, one ``[height, width, 3]`` uint8 RGB frame (the model's resolution times
+    ``model.scale``, framed by ``model.output_framing(framings[t])``) and, for models conditioned on the warped
+    prior, its ``[height, width]`` float32 coverage in [0, 1] (else None). Frame t's label map is drawn in
+    ``framings[t]`` (default: the model's framing of the poses, ``model.framing.frames``)."""
     seq = target_poses(model, poses, normalize)
     previous = None
+    renderer = PriorRenderer(model.bank) if model.bank is not None else None
+    size = (model.config.width, model.config.height)
     for keypoints, framing in zip(seq.keypoints, framings or model.framing.frames(seq)):
-        previous = model.step(condition(keypoints, framing, model.plate), previous)
-        yield to_image(previous[0])
+        if renderer is None:
+            previous = model.step(condition(keypoints, framing, model.plate), previous)
+            yield to_image(previous[0]), None
+            continue
+        high, low = prior_images(renderer, keypoints, model.output_framing(framing), model.plate, size)
+        previous, frame, coverage = model.step_with_prior(condition(keypoints, framing, model.plate, low), high,
+                                                          previous)
+        yield frame, coverage
+
+
+def render_frames(model: AppearanceModel, poses: PoseSequence, normalize: bool = True,
+                  framings: list[Framing] | None = None) -> Iterator[np.ndarray]:
+    """The frames of :func:`render_layers` alone."""
+    for frame, _ in render_layers(model, poses, normalize, framings):
+        yield frame
 
 
 def render_video(poses: PoseSequence, model: AppearanceModel | str | os.PathLike, out_path: str | os.PathLike,
@@ -210,8 +303,8 @@ def render_video(poses: PoseSequence, model: AppearanceModel | str | os.PathLike
     out_path = Path(out_path)
     frames = track(read_ahead(render_frames(model, poses, normalize)), total=len(poses), desc="rendering", unit="frame",
                   disable=not progress)
-    with VideoWriter(out_path, poses.fps, model.config.width, model.config.height, audio=audio,
-                     audio_sr=audio_sr) as writer:
+    width, height = model.scale * model.config.width, model.scale * model.config.height
+    with VideoWriter(out_path, poses.fps, width, height, audio=audio, audio_sr=audio_sr) as writer:
         for frame in frames:
             writer.write(frame)
     return out_path

@@ -6,7 +6,8 @@ Run folder layout (``RUN_DIR``, a :class:`dancesynth.core.runs.RunFolder`):
   frames_<W>x<H>.npy                                      framed training frames (uint8 memory map)
   background.png                                          the target's scene without the person (stage2_video.composite)
   losses.csv, validation.csv, losses.png                  per-step losses, held-out SSIM/PSNR, their plot
-  samples/step_XXXXXXX.png                                held-out frames: real | skeleton | generated
+  frames_<2W>x<2H>.npy, masks_<2W>x<2H>.npy               with the warped prior: the frame bank and person masks
+  samples/step_XXXXXXX.png                                held-out frames: real | skeleton | (prior |) generated
 
 Each step takes consecutive frame pairs (t-1, t): G renders t-1 from its skeleton and a black previous
 frame, then t from its skeleton and that generated frame, as at render time. Torchrun-ready: with
@@ -42,21 +43,25 @@ from stage2_video.data import (
     TargetVideo,
     cache_frames,
     check_poses_match,
+    frame_bank,
     load_or_extract_poses,
     split_ranges,
     to_image,
 )
 from stage2_video.framing import FollowFraming, framing_from_dict, video_framing
+from stage2_video.masks import cache_masks
 from stage2_video.models.pix2pixhd import (
     LABEL_CHANNELS,
     Pix2PixHD,
     Pix2PixHDConfig,
+    blend_base,
     feature_matching_loss,
     foreground_target,
     lsgan_loss,
     preset,
 )
 from stage2_video.normalize import body_stats
+from stage2_video.prior import scaled_framing
 from stage2_video.quality import psnr, ssim
 from stage2_video.retarget import target_bone_lengths
 from stage2_video.vgg import VGGLoss, build_vgg_loss
@@ -68,7 +73,9 @@ METHOD = "pix2pixhd"
 @dataclass
 class TrainOptions:
     """How long and how often: ``minutes`` (wall-clock budget of this invocation) and/or ``epochs`` (total);
-    ``max_steps`` stops this invocation after that many steps (smoke tests, resume checks)."""
+    ``max_steps`` stops this invocation after that many steps (smoke tests, resume checks). A budget of 0 minutes or
+    0 steps takes no step: it prepares the run (poses, frames, masks, plate) and saves the untrained model, which
+    renders the warped prior alone (:attr:`Pix2PixHDConfig.prior`)."""
 
     minutes: float | None = None
     epochs: int | None = None
@@ -159,7 +166,7 @@ class VideoTrainer:
             g_l1 = F.l1_loss(fakes.float(), reals) * cfg.lambda_l1
             loss_g = g_gan + g_feat + g_vgg + g_l1
             if cfg.blend:
-                target = foreground_target(labels, reals)
+                target = foreground_target(labels, reals, cfg.prior)
                 g_mask = F.l1_loss(torch.cat([mask_p, mask_c]).float(), target) * cfg.lambda_mask
                 loss_g = loss_g + g_mask
         self.opt_g.zero_grad(set_to_none=True)
@@ -179,19 +186,20 @@ class VideoTrainer:
     # --- loop -----------------------------------------------------------------------------------------------
     def fit(self) -> dict:
         """Train until ``epochs`` are done or the ``minutes`` budget is spent; checkpoint at the end."""
-        deadline = time.monotonic() + 60 * self.options.minutes if self.options.minutes else math.inf
-        last_step = self.step + self.options.max_steps if self.options.max_steps else math.inf
+        deadline = time.monotonic() + 60 * self.options.minutes if self.options.minutes is not None else math.inf
+        last_step = self.step + self.options.max_steps if self.options.max_steps is not None else math.inf
         start = time.monotonic()
         trained_before = self.trained_seconds
         # Under a time budget progress counts seconds, so its "left" is the budget's; otherwise epochs.
-        if self.options.minutes:
+        if self.options.minutes is not None:
             bar = track(total=round(60 * self.options.minutes), desc="training", unit="s", disable=self.rank != 0)
         else:
             bar = track(total=self.total_epochs, initial=self.epoch, desc="epochs", unit="epoch",
                         disable=self.rank != 0)
         # One process only: ranks of a multi-process run would stop at different steps and hang in a collective.
         with deferred_interrupts(enabled=self.world == 1) as stop:
-            self._loop(deadline, last_step, start, trained_before, bar, stop)
+            if self.options.minutes != 0 and self.options.max_steps != 0:
+                self._loop(deadline, last_step, start, trained_before, bar, stop)
         bar.close()
         if stop.requested:
             # Ctrl-C or SIGTERM between two steps: the minutes trained are kept, quickly (no validation).
@@ -238,6 +246,13 @@ class VideoTrainer:
         self.folder.log("losses", {"step": self.step, "epoch": self.epoch, "lr": self.lr(), **losses,
                                    "seconds": round(seconds, 1)})
 
+    def _generate(self, label: torch.Tensor, previous: torch.Tensor | None = None) -> torch.Tensor:
+        """The model's frame for a ``[1, C, H, W]`` condition; before its first step a model conditioned on the warped
+        prior renders the prior alone, as :func:`stage2_video.render.load_appearance_model` does."""
+        if self.step == 0 and self.config.prior:
+            return blend_base(label, True)
+        return self.model.generate(label, previous)
+
     @torch.no_grad()
     def validate(self) -> dict[str, float]:
         """Mean SSIM / PSNR over up to ``val_frames`` held-out frames, generated in sequence as at render time."""
@@ -245,9 +260,10 @@ class VideoTrainer:
         frames = self.val_frames[:self.options.val_frames]
         scores_s, scores_p, previous = [], [], None
         val = FramePairs(self.target, self.val_range)
+        renderer = self.target.renderer()
         for t in frames:
-            label, _ = val.item(t)
-            previous = self.model.generate(label[None].to(self.device), previous)
+            label, _ = val.item(t, renderer)
+            previous = self._generate(label[None].to(self.device), previous)
             fake = to_image(previous[0])
             real = np.asarray(self.target.frames[t])
             scores_s.append(ssim(fake, real))
@@ -259,18 +275,23 @@ class VideoTrainer:
 
     @torch.no_grad()
     def write_samples(self, count: int = 3) -> None:
-        """PNG grid of held-out frames, one row each: real | skeleton | generated (two-frame warm-up)."""
+        """PNG grid of held-out frames, one row each: real | skeleton | (warped prior |) generated (two-frame
+        warm-up)."""
         val = FramePairs(self.target, self.val_range)
         if self.rank != 0 or not len(val):
             return
         self.model.eval()
         rows = []
         for t in [val.starts[i] + 1 for i in np.linspace(0, len(val) - 1, count).astype(int)]:
-            label_p, _ = val.item(t - 1)
-            label, real = val.item(t)
-            previous = self.model.generate(label_p[None].to(self.device))
-            fake = self.model.generate(label[None].to(self.device), previous)
-            rows.append(np.concatenate([to_image(real), to_image(label[:LABEL_CHANNELS]), to_image(fake[0])], axis=1))
+            renderer = self.target.renderer()
+            label_p, _ = val.item(t - 1, renderer)
+            label, real = val.item(t, renderer)
+            previous = self._generate(label_p[None].to(self.device))
+            fake = self._generate(label[None].to(self.device), previous)
+            row = [to_image(real), to_image(label[:LABEL_CHANNELS])]
+            if self.config.prior:
+                row.append(to_image(blend_base(label[None], True)[0]))
+            rows.append(np.concatenate([*row, to_image(fake[0])], axis=1))
         self.model.train()
         folder = self.run_dir / "samples"
         folder.mkdir(exist_ok=True)
@@ -355,9 +376,16 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
             config = dataclasses.replace(config, background=True, blend=(overrides or {}).get("blend", True))
     frames = cache_frames(video, framing, run_dir, seq)
     plate = cache_plate(video, seq, run_dir)  # made by rank 0; the other ranks read it after the barrier
+    if config.prior:
+        bank_framing = scaled_framing(framing, config.prior_scale)
+        bank_frames = cache_frames(video, bank_framing, run_dir, seq)
+        masks = cache_masks(video, bank_framing, run_dir, seq)
     if run.writer:
         run.barrier()
-    target = TargetVideo(frames, seq, framing, plate if config.background else None)
+    bank = None
+    if config.prior:
+        bank = frame_bank(bank_frames, masks, seq, bank_framing, split_ranges(len(seq), config.val_fraction)[0])
+    target = TargetVideo(frames, seq, framing, plate if config.background else None, bank, config.prior_scale)
     trainer = VideoTrainer(config, target, run, dev, build_vgg_loss(vgg_weights),
                       options, str(video), dtype)
     if resume:

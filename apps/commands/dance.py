@@ -49,9 +49,10 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
     who.add_argument("--target", type=existing_file, metavar="VIDEO",
                      help="video of the person to animate (their appearance model is cached or trained now)")
     who.add_argument("--video-model", metavar="RUN", help="stage-2 run folder (from train-video)")
-    p.add_argument("--train-minutes", type=positive_float, default=None, metavar="M",
+    p.add_argument("--train-minutes", type=non_negative_float, default=None, metavar="M",
                    help="with --target: minutes of appearance training in all (default 30); more continues "
-                        "the cached model")
+                        "the cached model; 0 renders the person's own pixels warped onto the dance at once, "
+                        "untrained")
     p.add_argument("--cache", type=output_folder, default=None, metavar="DIR",
                    help="with --target: appearance-model cache (default ~/.cache/dancesynth/appearance)")
     p.add_argument("--preset", choices=("auto", "small", "medium"), default=None,

@@ -42,6 +42,12 @@ class Pix2PixHDConfig:
             background crop through that mask (vid2vid's foreground/background split, Wang et al. 2018), starting
             near the plate; the model then spends its steps on the person, not on copying the scene through the
             bottleneck. Training turns it on together with ``background``.
+        prior: the generator also sees the warped prior (:mod:`stage2_video.prior`: the person's own pixels from the
+            nearest training frames moved part by part onto the pose, over the background crop, and its alpha) and
+            ``blend`` paints over that instead of the bare background crop, so even an untrained network shows the
+            real person and training repairs seams, lighting and occlusions. Needs ``blend``.
+        prior_scale: the prior is warped at this many times the model's resolution; the network's correction is
+            upsampled onto it, so the output keeps the person's detail (rendered at ``prior_scale`` x the size).
         lambda_mask: with ``blend``, L1 weight pulling the mask towards where the real frame differs from the plate
             near the skeleton (:func:`foreground_target`), so the person comes out opaque rather than a
             half-transparent average.
@@ -67,6 +73,8 @@ class Pix2PixHDConfig:
     temporal: bool = True
     background: bool = False
     blend: bool = False
+    prior: bool = False
+    prior_scale: int = 2
     lambda_feat: float = 10.0
     lambda_vgg: float = 10.0
     lambda_l1: float = 10.0
@@ -81,6 +89,11 @@ class Pix2PixHDConfig:
     def __post_init__(self) -> None:
         if self.blend and not self.background:
             raise DancesynthError("The blend setting paints over the background crop; turn background on with it.")
+        if self.prior and not self.blend:
+            raise DancesynthError("The prior setting paints over the warped person; turn background and blend on "
+                                  "with it.")
+        if self.prior_scale < 1:
+            raise DancesynthError(f"The prior scale must be 1 or more, got {self.prior_scale}.")
         factor = 2 ** (self.n_downsample + int(self.local_enhancer))
         if self.width % factor or self.height % factor:
             raise DancesynthError(
@@ -88,11 +101,12 @@ class Pix2PixHDConfig:
                 "choose a multiple of it.")
 
 
+_WARPED = {"background": True, "blend": True, "prior": True}
 PRESETS: dict[str, Pix2PixHDConfig] = {
-    # CPU: global generator only, trains in minutes on a short video.
-    "small": Pix2PixHDConfig(),
+    # CPU: global generator only, trains in minutes on a short video; it repairs the warped person (docs/methods).
+    "small": Pix2PixHDConfig(**_WARPED),
     # The small network at 256 px: 4x the pixels per step, affordable with bf16 CPUs or a GPU.
-    "medium": Pix2PixHDConfig(width=256, height=256),
+    "medium": Pix2PixHDConfig(width=256, height=256, **_WARPED),
     # Published pix2pixHD 1024p / Everybody Dance Now settings (GPU); the enhancer's global generator gets 2 * ngf.
     "paper": Pix2PixHDConfig(width=1024, height=512, ngf=32, n_downsample=4, n_blocks=9, local_enhancer=True,
                              ndf=64, lambda_l1=0.0, batch_size=1),
@@ -238,14 +252,20 @@ class MultiscaleDiscriminator(nn.Module):
         return outs
 
 
-def plate_crop(condition: torch.Tensor) -> torch.Tensor:
-    """The background crop ``[B, 3, H, W]`` of a ``[B, C, H, W]`` generator input or condition (label map first)."""
-    return condition[:, LABEL_CHANNELS:LABEL_CHANNELS + IMAGE_CHANNELS]
+# The warped prior's channels: the person over the background crop (RGB) and the warp's alpha.
+PRIOR_CHANNELS = 4
+
+
+def blend_base(condition: torch.Tensor, prior: bool) -> torch.Tensor:
+    """What a blending generator paints over, ``[B, 3, H, W]``: the warped prior's RGB with ``prior``, else the
+    background crop, of a ``[B, C, H, W]`` generator input or condition."""
+    start = LABEL_CHANNELS + IMAGE_CHANNELS if prior else LABEL_CHANNELS
+    return condition[:, start:start + IMAGE_CHANNELS]
 
 
 def condition_channels(config: Pix2PixHDConfig) -> int:
-    """Channels of what a frame is conditioned on: the label map (+ the background crop)."""
-    return LABEL_CHANNELS + (IMAGE_CHANNELS if config.background else 0)
+    """Channels of what a frame is conditioned on: the label map (+ the background crop (+ the warped prior))."""
+    return LABEL_CHANNELS + (IMAGE_CHANNELS if config.background else 0) + (PRIOR_CHANNELS if config.prior else 0)
 
 
 def generator_channels(config: Pix2PixHDConfig) -> int:
@@ -254,7 +274,8 @@ def generator_channels(config: Pix2PixHDConfig) -> int:
 
 
 class PlateBlend(nn.Module):
-    """Paints ``inner``'s RGB over the input's background crop through ``inner``'s fourth channel as a mask.
+    """Paints ``inner``'s RGB over the input's background crop (with ``prior``, over the warped prior) through
+    ``inner``'s fourth channel as a mask.
 
     ``[B, C, H, W]`` (label map, background crop, ...; :func:`generator_channels`) -> ``[B, 3, H, W]`` in [-1, 1].
     """
@@ -263,21 +284,25 @@ class PlateBlend(nn.Module):
     # of the gradient.
     START = -1.0
 
-    def __init__(self, inner: GlobalGenerator | LocalEnhancer) -> None:
+    def __init__(self, inner: GlobalGenerator | LocalEnhancer, prior: bool = False) -> None:
         super().__init__()
-        self.inner = inner
+        self.inner, self.prior = inner, prior
         with torch.no_grad():
             inner.output_conv.bias[IMAGE_CHANNELS] = self.START
 
     def frame_and_mask(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """The composed ``[B, 3, H, W]`` frame and the ``[B, 1, H, W]`` mask in [0, 1] it was composed with."""
-        out = self.inner(x)
-        plate = plate_crop(x)
-        mask = out[:, IMAGE_CHANNELS:].add(1.0).mul(0.5)
-        return plate + mask * (out[:, :IMAGE_CHANNELS] - plate), mask
+        return blend(self.inner(x), blend_base(x, self.prior))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         return self.frame_and_mask(x)[0]
+
+
+def blend(raw: torch.Tensor, base: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """A blending generator's ``[B, 4, H, W]`` raw output (RGB and mask in [-1, 1]) painted over ``base``
+    (``[B, 3, H, W]``): the ``[B, 3, H, W]`` frame and the ``[B, 1, H, W]`` mask in [0, 1]."""
+    mask = raw[:, IMAGE_CHANNELS:].add(1.0).mul(0.5)
+    return base + mask * (raw[:, :IMAGE_CHANNELS] - base), mask
 
 
 # A pixel is foreground where the real frame differs from the plate by this much (0-255 scale: ~25 grey levels)
@@ -287,12 +312,12 @@ FOREGROUND_THRESHOLD = 0.2
 FOREGROUND_REACH = 10
 
 
-def foreground_target(condition: torch.Tensor, real: torch.Tensor) -> torch.Tensor:
-    """Where the person is in ``real``: ``[B, 1, H, W]`` in {0, 1}, 1 where the ``[B, 3, H, W]`` real frame differs
-    from the background crop of ``condition`` (label map, background crop; values in [-1, 1]) by more than
-    ``FOREGROUND_THRESHOLD`` and lies within ``FOREGROUND_REACH`` of the drawn skeleton (so the scene's own changes,
-    e.g. leaves moving, do not count)."""
-    differs = (real - plate_crop(condition)).abs().amax(1, keepdim=True) > FOREGROUND_THRESHOLD
+def foreground_target(condition: torch.Tensor, real: torch.Tensor, prior: bool = False) -> torch.Tensor:
+    """Where the generator must paint: ``[B, 1, H, W]`` in {0, 1}, 1 where the ``[B, 3, H, W]`` real frame differs
+    from what it paints over (:func:`blend_base` of ``condition``: the background crop, or with ``prior`` the warped
+    person over it; values in [-1, 1]) by more than ``FOREGROUND_THRESHOLD`` and lies within ``FOREGROUND_REACH`` of
+    the drawn skeleton (so the scene's own changes, e.g. leaves moving, do not count)."""
+    differs = (real - blend_base(condition, prior)).abs().amax(1, keepdim=True) > FOREGROUND_THRESHOLD
     skeleton = (condition[:, :LABEL_CHANNELS] > -1.0).any(1, keepdim=True).float()
     reach = max(1, round(FOREGROUND_REACH * condition.shape[2] / 128))
     near = F.max_pool2d(skeleton, 2 * reach + 1, stride=1, padding=reach) > 0
@@ -307,7 +332,7 @@ def build_generator(config: Pix2PixHDConfig) -> nn.Module:
         inner = LocalEnhancer(cin, config.ngf, config.n_downsample, config.n_blocks, config.n_blocks_local, cout)
     else:
         inner = GlobalGenerator(cin, config.ngf, config.n_downsample, config.n_blocks, cout)
-    return PlateBlend(inner) if config.blend else inner
+    return PlateBlend(inner, config.prior) if config.blend else inner
 
 
 class Pix2PixHD(nn.Module):

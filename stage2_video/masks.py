@@ -1,0 +1,138 @@
+"""Person masks: where the target person's own pixels are in each frame, from BlazePose's segmentation.
+
+mediapipe's Pose graph (``enable_segmentation=True``, model bundled in the wheel) returns a soft person mask with
+the landmarks. It misses small figures in a large frame, so it runs on each frame's person crop (the box around
+that frame's pose, grown by :data:`CROP_GROWTH`), and what it returns is kept only near the pose (so a second
+person or a prop next to the target never counts). Frames where it finds nobody fall back to the pose drawn with
+thick limbs (:func:`stage2_video.composite.draw_person`). The masks are framed like the training frames
+(:class:`stage2_video.framing.Framing`) and cached in the run folder as a uint8 ``.npy`` memory map keyed by the
+video's content, the framing and the poses, like the frames (:func:`stage2_video.data.cache_file`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.media import read_frames
+from dancesynth.core.progress import track
+from dancesynth.core.skeleton import PoseSequence, body_scale
+from stage2_video.composite import person_mask, poses_digest
+from stage2_video.data import cache_file
+from stage2_video.extract import native_logs_hidden_unless_info
+from stage2_video.framing import MIN_CONFIDENCE, Framing, VideoFraming
+
+# The crop the segmenter sees: the pose's bounding box grown by this share of its longer side on every side.
+CROP_GROWTH = 0.3
+# Longest side the crop is resampled to (the segmenter itself works at 256 x 256).
+SEGMENT_SIZE = 256
+# Soft mask value from which a pixel belongs to the person.
+MASK_THRESHOLD = 0.5
+# The segmenter's answer is kept within this many torso lengths of the drawn pose (hair, loose clothes, hands).
+KEEP_MARGIN = 0.6
+# Fallback where the segmenter finds nobody: the pose drawn with this margin (torso lengths).
+FALLBACK_MARGIN = 0.1
+
+
+def masks_file(framing: VideoFraming) -> str:
+    return f"masks_{framing.out_width}x{framing.out_height}.npy"
+
+
+def person_box(keypoints: np.ndarray, width: int, height: int) -> tuple[int, int, int, int] | None:
+    """``(x0, y0, x1, y1)``: the square around one ``[25, 3]`` pose (canvas pixels) grown by :data:`CROP_GROWTH`,
+    clipped to the ``width x height`` frame; None without any joint."""
+    present = keypoints[:, 2] >= MIN_CONFIDENCE
+    if not present.any():
+        return None
+    lo, hi = keypoints[present, :2].min(axis=0), keypoints[present, :2].max(axis=0)
+    side = max(float((hi - lo).max()), 1.0) * (1 + 2 * CROP_GROWTH)
+    cx, cy = (lo + hi) / 2
+    x0, y0 = max(0, int(cx - side / 2)), max(0, int(cy - side / 2))
+    x1, y1 = min(width, int(np.ceil(cx + side / 2))), min(height, int(np.ceil(cy + side / 2)))
+    return (x0, y0, x1, y1) if x1 - x0 >= 8 and y1 - y0 >= 8 else None
+
+
+class Segmenter:
+    """BlazePose with segmentation on the consecutive person crops of one video (video mode: it tracks between
+    calls, four times faster than searching every crop anew; the crops' size varies, so its mask smoothing, which
+    needs one size, is off)."""
+
+    def __init__(self) -> None:
+        try:
+            from mediapipe.python.solutions.pose import Pose
+        except ImportError as e:
+            raise DancesynthError("mediapipe is not installed; install it with "
+                                  "`pip install --no-deps mediapipe==0.10.21` (see the Makefile).") from e
+        self._graph = Pose(model_complexity=1, static_image_mode=False, enable_segmentation=True,
+                           smooth_segmentation=False)
+
+    def close(self) -> None:
+        self._graph.close()
+
+    def __call__(self, image: np.ndarray) -> np.ndarray | None:
+        """``[h, w, 3]`` uint8 RGB -> ``[h, w]`` float32 person probability, or None when nobody is found."""
+        result = self._graph.process(np.ascontiguousarray(image))
+        return None if result.segmentation_mask is None else np.asarray(result.segmentation_mask, np.float32)
+
+
+def frame_mask(segmenter: Segmenter, frame: np.ndarray, keypoints: np.ndarray, reference: float) -> np.ndarray:
+    """``[H, W]`` bool: the person of one ``[25, 3]`` pose (canvas pixels) in one ``[H, W, 3]`` uint8 frame;
+    ``reference`` is the video's torso length in pixels."""
+    height, width = frame.shape[:2]
+    near = person_mask(keypoints, width, height, reference, KEEP_MARGIN)
+    box = person_box(keypoints, width, height)
+    soft = None
+    if box is not None:
+        x0, y0, x1, y1 = box
+        scale = SEGMENT_SIZE / max(x1 - x0, y1 - y0)
+        crop = cv2.resize(frame[y0:y1, x0:x1], (max(1, round((x1 - x0) * scale)), max(1, round((y1 - y0) * scale))),
+                          interpolation=cv2.INTER_AREA if scale < 1 else cv2.INTER_LINEAR)
+        soft = segmenter(crop)
+    if soft is None:
+        return person_mask(keypoints, width, height, reference, FALLBACK_MARGIN)
+    mask = np.zeros((height, width), bool)
+    mask[y0:y1, x0:x1] = cv2.resize(soft, (x1 - x0, y1 - y0), interpolation=cv2.INTER_LINEAR) >= MASK_THRESHOLD
+    return mask & near
+
+
+def framed_mask(mask: np.ndarray, framing: Framing) -> np.ndarray:
+    """``[H, W]`` bool canvas mask -> ``[out_height, out_width]`` uint8 (0 or 255, resampled edges in between)."""
+    return framing.image(mask.astype(np.uint8) * 255)
+
+
+def cache_masks(video: Path, framing: VideoFraming, run_dir: Path, poses: PoseSequence) -> np.ndarray:
+    """Framed person masks ``[T, H, W]`` uint8 (memory-mapped; frame t framed as ``framing.frames(poses)[t]``),
+    cached in ``run_dir`` keyed by the video's content, the framing and the poses."""
+    path = Path(run_dir) / masks_file(framing)
+    boxes = framing.frames(poses)
+    corners = hashlib.sha256(np.array([(f.x0, f.y0) for f in boxes], np.int64).tobytes()).hexdigest()
+
+    def write(tmp: Path) -> None:
+        reference = body_scale(poses)
+        out = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.uint8,
+                                        shape=(len(poses), framing.out_height, framing.out_width))
+        count = 0
+        segmenter = None
+        with native_logs_hidden_unless_info():
+            segmenter = Segmenter()
+            try:
+                for frame in track(read_frames(video), total=len(poses), desc="person masks", unit="frame"):
+                    if count == len(poses):
+                        break
+                    out[count] = framed_mask(frame_mask(segmenter, frame, poses.keypoints[count], reference),
+                                             boxes[count])
+                    count += 1
+            finally:
+                segmenter.close()
+        out.flush()
+        del out
+        if count < len(poses):
+            raise DancesynthError(f"{video} has {count} frames but the poses have {len(poses)}; "
+                                  "pass the poses extracted from this video.")
+
+    cache_file(path, Path(video), write, framing=framing.to_dict(), poses=poses_digest(poses), boxes=corners)
+    return np.load(path, mmap_mode="r")

@@ -1,0 +1,470 @@
+"""The warped prior: the target person's own pixels moved onto a new pose, body part by body part.
+
+A generator that must learn a person from scratch in minutes of CPU training draws a ghost. Methods that make a
+recognisable person from little data start from the person's own pixels (Balakrishnan et al. CVPR 2018, part-wise
+warping; Siarohin et al. CVPR 2018; few-shot vid2vid's warped reference; Efros et al. 2003's nearest-neighbour
+retrieval). Here, for every pose to render:
+
+1. **Retrieval** (:class:`FrameBank`): the training frames whose pose is nearest by a descriptor that ignores
+   position and scale (each bone's vector in torso lengths, so direction and foreshortening count, plus which face
+   points are visible). Each group of parts (head and torso, each arm, each leg) takes its own nearest frame, with
+   the bones that face the camera (shoulders, hips, face) in every group's cost so no part comes from a frame
+   facing the other way. A choice is kept from frame to frame while it stays nearly as good (no flicker), and frames
+   within ``exclude`` of the frame being learnt are never returned (the network must learn to repair a warp, not
+   to copy its input).
+2. **Parts** (:func:`part_labels`): the source frame's person mask (:mod:`stage2_video.masks`) is split into head,
+   torso, upper arms, forearms with hands, thighs and shins with feet by the nearest drawn bone (a hand belongs to
+   its forearm even where it rests on the torso); torso pixels hidden by an arm are filled in from around them.
+3. **Warping** (:func:`warp_parts`): the torso moves by the least-squares similarity of its six joints; each limb
+   part by the affine that takes its source bone onto the target bone (stretched along the bone, the torso's scale
+   across it); the head by a similarity about the nose with the torso's scale. Parts are painted back to front
+   (torso, legs, head, arms), giving an RGB + alpha image over the plate crop: the generator's "warped prior".
+
+Everything is in the pixels of a bank image (the model's framing at ``scale`` times its resolution).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from dancesynth.core.skeleton import JOINT_INDEX, NECK, ROOT
+from stage2_video.framing import MIN_CONFIDENCE, Framing, VideoFraming
+
+J = JOINT_INDEX
+# Bones compared by retrieval, as (parent, child) joints; their vectors are measured in torso lengths.
+DESCRIPTOR_BONES: tuple[tuple[int, int], ...] = (
+    (J["Neck"], J["Nose"]), (J["Neck"], J["RShoulder"]), (J["Neck"], J["LShoulder"]), (J["Neck"], J["MidHip"]),
+    (J["MidHip"], J["RHip"]), (J["MidHip"], J["LHip"]),
+    (J["RShoulder"], J["RElbow"]), (J["RElbow"], J["RWrist"]), (J["LShoulder"], J["LElbow"]),
+    (J["LElbow"], J["LWrist"]), (J["RHip"], J["RKnee"]), (J["RKnee"], J["RAnkle"]), (J["LHip"], J["LKnee"]),
+    (J["LKnee"], J["LAnkle"]), (J["Nose"], J["REye"]), (J["Nose"], J["LEye"]),
+)
+# Face points whose visibility tells front, back and profile views apart.
+FACE_POINTS = (J["REye"], J["LEye"], J["REar"], J["LEar"])
+# The bones every group's retrieval cost includes: the ones that show which way the person faces.
+FACING_BONES = (0, 1, 2, 4, 5, 14, 15)
+# A bone present in the pose to render but absent in a bank frame costs this (squared torso lengths).
+MISSING_COST = 1.0
+# Weight of a face point seen in one pose and not the other.
+FACE_COST = 0.3
+# A frame chosen for the previous pose is kept while its cost is within this of the best (squared torso lengths).
+HYSTERESIS = 0.15
+
+
+@dataclass(frozen=True)
+class Part:
+    """One rigidly moved body part.
+
+    Attributes:
+        name: what it is.
+        lines: joint pairs drawn to decide which pixels belong to it (nearest drawn part wins).
+        bone: the joints whose move carries a limb part (None: torso or head, see :func:`part_transform`).
+        extend: a line past ``bone``'s child joint, in torso lengths along the bone (hand, foot tip), or 0.
+        reach: how far (torso lengths) from its lines a person pixel may lie and still belong to it.
+        group: the retrieval group it is taken from.
+    """
+
+    name: str
+    lines: tuple[tuple[int, int], ...]
+    bone: tuple[int, int] | None
+    extend: float
+    reach: float
+    group: str
+
+
+# Back to front: the order parts are painted in.
+PARTS: tuple[Part, ...] = (
+    Part("torso", ((J["Neck"], J["MidHip"]),), None, 0.0, 0.25, "core"),
+    Part("right thigh", ((J["RHip"], J["RKnee"]),), (J["RHip"], J["RKnee"]), 0.0, 0.3, "right leg"),
+    Part("left thigh", ((J["LHip"], J["LKnee"]),), (J["LHip"], J["LKnee"]), 0.0, 0.3, "left leg"),
+    Part("right shin", ((J["RKnee"], J["RAnkle"]), (J["RAnkle"], J["RBigToe"]), (J["RAnkle"], J["RHeel"])),
+         (J["RKnee"], J["RAnkle"]), 0.0, 0.3, "right leg"),
+    Part("left shin", ((J["LKnee"], J["LAnkle"]), (J["LAnkle"], J["LBigToe"]), (J["LAnkle"], J["LHeel"])),
+         (J["LKnee"], J["LAnkle"]), 0.0, 0.3, "left leg"),
+    Part("head", ((J["Neck"], J["Nose"]), (J["Nose"], J["REye"]), (J["Nose"], J["LEye"]), (J["REye"], J["REar"]),
+                  (J["LEye"], J["LEar"])), None, 0.0, 0.5, "core"),
+    Part("right upper arm", ((J["RShoulder"], J["RElbow"]),), (J["RShoulder"], J["RElbow"]), 0.0, 0.25, "right arm"),
+    Part("left upper arm", ((J["LShoulder"], J["LElbow"]),), (J["LShoulder"], J["LElbow"]), 0.0, 0.25, "left arm"),
+    Part("right forearm", ((J["RElbow"], J["RWrist"]),), (J["RElbow"], J["RWrist"]), 0.35, 0.25, "right arm"),
+    Part("left forearm", ((J["LElbow"], J["LWrist"]),), (J["LElbow"], J["LWrist"]), 0.35, 0.25, "left arm"),
+)
+TORSO, HEAD = 0, 5
+# The torso quadrilateral (pixels inside it belong to the torso unless a limb is nearer than TORSO_BIAS).
+TORSO_CORNERS = (J["RShoulder"], J["LShoulder"], J["LHip"], J["RHip"])
+TORSO_JOINTS = (J["Neck"], J["RShoulder"], J["LShoulder"], J["MidHip"], J["RHip"], J["LHip"])
+# Inside the torso, a limb's pixels within this many torso lengths of its line stay with the limb (an arm across
+# the body, a hand on the hip).
+TORSO_BIAS = 0.15
+# Indices of DESCRIPTOR_BONES per retrieval group (besides FACING_BONES).
+GROUP_BONES: dict[str, tuple[int, ...]] = {
+    "core": (0, 1, 2, 3, 4, 5), "right arm": (6, 7), "left arm": (8, 9), "right leg": (10, 11), "left leg": (12, 13),
+}
+GROUPS = tuple(GROUP_BONES)
+# A limb may stretch along its bone to at most this factor of the torso's scale (a foreshortened source limb).
+MAX_STRETCH = 2.5
+# Radius (torso lengths) of the disc at each shoulder that the torso's region also covers.
+SHOULDER_RADIUS = 0.15
+# Each part's region grows by this many pixels into its neighbours', so moved parts overlap instead of leaving a seam.
+OVERLAP_PIXELS = 2
+NO_PART = 255
+
+
+def scaled_framing(framing: VideoFraming, scale: int) -> VideoFraming:
+    """The same crop box(es) resized to ``scale`` times the model image (bank and output pixels)."""
+    return dataclasses.replace(framing, out_width=framing.out_width * scale, out_height=framing.out_height * scale)
+
+
+def torso_lengths(keypoints: np.ndarray) -> np.ndarray:
+    """``[..., 25, 3]`` poses -> ``[...]`` Neck-MidHip lengths (pixels; NaN where either joint is absent)."""
+    kp = np.asarray(keypoints, np.float32)
+    ok = (kp[..., NECK, 2] >= MIN_CONFIDENCE) & (kp[..., ROOT, 2] >= MIN_CONFIDENCE)
+    length = np.linalg.norm(kp[..., NECK, :2] - kp[..., ROOT, :2], axis=-1)
+    return np.where(ok & (length > 1e-3), length, np.nan)
+
+
+def descriptor(keypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Position- and scale-free description of ``[..., 25, 3]`` poses.
+
+    Returns:
+        ``[..., B, 2]`` bone vectors in torso lengths (B = len(DESCRIPTOR_BONES)), ``[..., B]`` bool bone present,
+        ``[..., 4]`` bool face points visible.
+    """
+    kp = np.asarray(keypoints, np.float32)
+    parents = np.array([a for a, _ in DESCRIPTOR_BONES])
+    children = np.array([b for _, b in DESCRIPTOR_BONES])
+    torso = torso_lengths(kp)
+    vectors = (kp[..., children, :2] - kp[..., parents, :2]) / torso[..., None, None]
+    present = (kp[..., parents, 2] >= MIN_CONFIDENCE) & (kp[..., children, 2] >= MIN_CONFIDENCE)
+    present &= np.isfinite(torso)[..., None]
+    face = kp[..., list(FACE_POINTS), 2] >= MIN_CONFIDENCE
+    return np.where(present[..., None], vectors, 0.0).astype(np.float32), present, face
+
+
+def group_costs(bank: tuple[np.ndarray, np.ndarray, np.ndarray], query: np.ndarray) -> dict[str, np.ndarray]:
+    """Retrieval cost of every bank frame for one ``[25, 3]`` query pose, per group: ``{group: [N]}``, lower is
+    nearer (squared torso lengths summed over the group's bones and the facing bones)."""
+    vectors, present, face = bank
+    q_vec, q_present, q_face = descriptor(query)
+    per_bone = np.where(present, ((vectors - q_vec) ** 2).sum(-1), MISSING_COST) * q_present  # [N, B]
+    shared = per_bone[:, list(FACING_BONES)].sum(1) + FACE_COST * (face != q_face).sum(1)
+    return {g: shared + per_bone[:, [b for b in bones if b not in FACING_BONES]].sum(1)
+            for g, bones in GROUP_BONES.items()}
+
+
+def _segment_mask(shape: tuple[int, int], lines: list[tuple[np.ndarray, np.ndarray]],
+                  polygon: np.ndarray | None) -> np.ndarray:
+    canvas = np.full(shape, 255, np.uint8)
+    for a, b in lines:
+        cv2.line(canvas, tuple(int(v) for v in np.round(a)), tuple(int(v) for v in np.round(b)), 0, 1)
+    if polygon is not None:
+        cv2.fillConvexPoly(canvas, np.round(polygon).astype(np.int32), 0)
+    return canvas
+
+
+def part_lines(part: Part, kp: np.ndarray, torso: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The segments (pixel end points) drawn for ``part`` of one ``[25, 3]`` pose; its hand or foot line too."""
+    present = kp[:, 2] >= MIN_CONFIDENCE
+    lines = [(kp[a, :2], kp[b, :2]) for a, b in part.lines if present[a] and present[b]]
+    if part.extend and part.bone is not None and present[part.bone[0]] and present[part.bone[1]]:
+        a, b = kp[part.bone[0], :2], kp[part.bone[1], :2]
+        direction = (b - a) / max(float(np.linalg.norm(b - a)), 1e-6)
+        lines.append((b, b + direction * part.extend * torso))
+    return lines
+
+
+def part_labels(mask: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
+    """``[H, W]`` uint8 part index (into :data:`PARTS`, :data:`NO_PART` off the person) of each pixel of a person
+    ``mask`` (``[H, W]``, non-zero on the person) whose pose is ``keypoints`` (``[25, 3]``, same pixels)."""
+    kp = np.asarray(keypoints, np.float32)
+    labels = np.full(mask.shape, NO_PART, np.uint8)
+    torso = float(torso_lengths(kp))
+    person = mask > 127
+    if not np.isfinite(torso) or not person.any():
+        return labels
+    ys, xs = np.nonzero(person)
+    pad = 2
+    y0, y1 = max(0, ys.min() - pad), min(mask.shape[0], ys.max() + pad + 1)
+    x0, x1 = max(0, xs.min() - pad), min(mask.shape[1], xs.max() + pad + 1)
+    local = kp.copy()
+    local[:, :2] -= (x0, y0)
+    shape = (y1 - y0, x1 - x0)
+    distances = np.full((len(PARTS), *shape), np.inf, np.float32)
+    corners = [j for j in TORSO_CORNERS if local[j, 2] >= MIN_CONFIDENCE]
+    for i, part in enumerate(PARTS):
+        lines = part_lines(part, local, torso)
+        polygon = local[corners, :2] if i == TORSO and len(corners) >= 3 else None
+        if not lines and polygon is None:
+            continue
+        d = cv2.distanceTransform(_segment_mask(shape, lines, polygon), cv2.DIST_L2, 3)
+        if i == TORSO:
+            d = d + TORSO_BIAS * torso
+        distances[i] = np.where(d <= part.reach * torso + (TORSO_BIAS * torso if i == TORSO else 0), d, np.inf)
+    nearest = distances.argmin(0).astype(np.uint8)
+    reached = np.isfinite(distances.min(0))
+    labels[y0:y1, x0:x1] = np.where(person[y0:y1, x0:x1] & reached, nearest, NO_PART)
+    return labels
+
+
+def fill_torso(image: np.ndarray, labels: np.ndarray, keypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The torso's region of one frame: its own pixels plus the quadrilateral between shoulders and hips and a
+    disc at each shoulder (``[H, W]`` bool), and ``image`` with the pixels of that region which limbs cover
+    filled in from the torso around them, so a torso moved out from behind an arm shows no hole and a raised arm
+    leaves no wedge at the shoulder."""
+    region = labels == TORSO
+    corners = [j for j in TORSO_CORNERS if keypoints[j, 2] >= MIN_CONFIDENCE]
+    torso = float(torso_lengths(keypoints))
+    if len(corners) < 3 or not region.any() or not np.isfinite(torso):
+        return image, region
+    quad = np.zeros(labels.shape, np.uint8)
+    cv2.fillConvexPoly(quad, np.round(keypoints[corners, :2]).astype(np.int32), 1)
+    for j in (J["RShoulder"], J["LShoulder"]):
+        if keypoints[j, 2] >= MIN_CONFIDENCE:
+            cv2.circle(quad, tuple(int(v) for v in np.round(keypoints[j, :2])), round(SHOULDER_RADIUS * torso), 1, -1)
+    holes = (quad > 0) & ~region & (labels != NO_PART)  # limb pixels only: the background stays out
+    if not holes.any():
+        return image, region
+    # Each hole pixel takes the colour of the nearest torso pixel (inpainting would draw on the background too).
+    _, nearest = cv2.distanceTransformWithLabels(np.where(region, 0, 255).astype(np.uint8), cv2.DIST_L2, 5,
+                                                 labelType=cv2.DIST_LABEL_PIXEL)
+    ys, xs = np.nonzero(region)  # DIST_LABEL_PIXEL numbers the zero pixels from 1 in raster order
+    hy, hx = np.nonzero(holes)
+    source = nearest[hy, hx] - 1
+    filled = image.copy()
+    filled[hy, hx] = image[ys[source], xs[source]]
+    return filled, region | holes
+
+
+def similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """``[2, 3]`` least-squares similarity (rotation, uniform scale, translation; Umeyama 1991) taking ``[n, 2]``
+    points ``src`` onto ``dst`` (n >= 2)."""
+    mu_s, mu_d = src.mean(0), dst.mean(0)
+    s, d = src - mu_s, dst - mu_d
+    cov = d.T @ s / len(src)
+    u, sigma, vt = np.linalg.svd(cov)
+    sign = np.diag([1.0, np.sign(np.linalg.det(u @ vt)) or 1.0])
+    rotation = u @ sign @ vt
+    variance = (s ** 2).sum() / len(src)
+    scale = float(np.trace(np.diag(sigma) @ sign) / max(variance, 1e-9))
+    linear = scale * rotation
+    return np.c_[linear, mu_d - linear @ mu_s]
+
+
+def bone_affine(a: np.ndarray, b: np.ndarray, a2: np.ndarray, b2: np.ndarray, across: float) -> np.ndarray:
+    """``[2, 3]`` affine taking segment ``a -> b`` onto ``a2 -> b2``: rotated with it, stretched along it to its
+    length (at most ``MAX_STRETCH`` x ``across``) and scaled by ``across`` across it; ``a`` lands on ``a2``."""
+    u, u2 = b - a, b2 - a2
+    length, length2 = float(np.linalg.norm(u)), float(np.linalg.norm(u2))
+    if length < 1e-6 or length2 < 1e-6:
+        return np.c_[across * np.eye(2), a2 - across * a]
+    u, u2 = u / length, u2 / length2
+    along = min(length2 / length, MAX_STRETCH * across)
+    frame, frame2 = np.array([u, [-u[1], u[0]]]).T, np.array([u2, [-u2[1], u2[0]]]).T
+    linear = frame2 @ np.diag([along, across]) @ frame.T
+    return np.c_[linear, a2 - linear @ a]
+
+
+def part_transform(part: Part, src: np.ndarray, dst: np.ndarray, torso_fit: np.ndarray | None) -> np.ndarray | None:
+    """``[2, 3]`` affine moving ``part`` from pose ``src`` to pose ``dst`` (``[25, 3]`` pixels), or None when a
+    joint it needs is absent in either. ``torso_fit``: the torso's similarity (its scale sizes the other parts)."""
+    if torso_fit is None:
+        return None
+    if part.bone is None and part.name == "torso":
+        return torso_fit
+    both = (src[:, 2] >= MIN_CONFIDENCE) & (dst[:, 2] >= MIN_CONFIDENCE)
+    scale = float(np.sqrt(abs(np.linalg.det(torso_fit[:, :2]))))
+    if part.bone is None:  # the head: a similarity about the nose, turned with the neck-nose direction
+        nose, neck = J["Nose"], NECK
+        if not (both[nose] and both[neck]):
+            return None
+        up, up2 = src[nose, :2] - src[neck, :2], dst[nose, :2] - dst[neck, :2]
+        return bone_affine(src[nose, :2], src[nose, :2] + up, dst[nose, :2], dst[nose, :2] + _turned(up, up2, scale),
+                           scale)
+    a, b = part.bone
+    if not (both[a] and both[b]):
+        return None
+    return bone_affine(src[a, :2], src[b, :2], dst[a, :2], dst[b, :2], scale)
+
+
+def _turned(vector: np.ndarray, direction: np.ndarray, scale: float) -> np.ndarray:
+    """``vector`` scaled by ``scale`` and turned to point along ``direction``."""
+    norm = max(float(np.linalg.norm(direction)), 1e-6)
+    return direction / norm * float(np.linalg.norm(vector)) * scale
+
+
+def torso_similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
+    """The torso's ``[2, 3]`` similarity from ``src`` to ``dst`` (``[25, 3]``), None with fewer than 2 shared
+    torso joints."""
+    shared = [j for j in TORSO_JOINTS if src[j, 2] >= MIN_CONFIDENCE and dst[j, 2] >= MIN_CONFIDENCE]
+    if len(shared) < 2:
+        return None
+    return similarity(src[shared, :2].astype(np.float64), dst[shared, :2].astype(np.float64))
+
+
+@dataclass
+class Source:
+    """One bank frame ready to be cut into parts: ``[H, W, 3]`` uint8 image (torso holes filled), ``[H, W]``
+    uint8 part labels, the torso's ``[H, W]`` bool region (:func:`fill_torso`) and its ``[25, 3]`` pose in bank
+    pixels."""
+
+    image: np.ndarray
+    labels: np.ndarray
+    torso: np.ndarray
+    keypoints: np.ndarray
+
+    def region(self, part: int) -> np.ndarray:
+        """``[H, W]`` bool: the pixels of part ``part``, grown by :data:`OVERLAP_PIXELS` over the person."""
+        inside = self.torso if part == TORSO else self.labels == part
+        if not inside.any():
+            return inside
+        kernel = np.ones((2 * OVERLAP_PIXELS + 1,) * 2, np.uint8)
+        grown = cv2.dilate(inside.astype(np.uint8), kernel) > 0
+        return inside | (grown & ((self.labels != NO_PART) | self.torso))
+
+
+def warp_parts(sources: dict[str, Source], target: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """Paint every part of its group's source onto the ``[25, 3]`` ``target`` pose.
+
+    Args:
+        sources: the source frame of each retrieval group (:data:`GROUPS`).
+        target: the pose to render, in bank pixels.
+        size: ``(width, height)`` of the bank image.
+
+    Returns:
+        ``[H, W, 3]`` float32 colour premultiplied by alpha (0-255) and ``[H, W]`` float32 alpha in [0, 1].
+    """
+    width, height = size
+    colour = np.zeros((height, width, 3), np.float32)
+    alpha = np.zeros((height, width), np.float32)
+    fits = {g: torso_similarity(s.keypoints, target) for g, s in sources.items()}
+    for i, part in enumerate(PARTS):
+        source = sources[part.group]
+        m = part_transform(part, source.keypoints, target, fits[part.group])
+        if m is None:
+            continue
+        inside = source.region(i)
+        if not inside.any():
+            continue
+        ys, xs = np.nonzero(inside)
+        y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
+        layer = np.empty((y1 - y0, x1 - x0, 4), np.float32)
+        layer[..., 3] = inside[y0:y1, x0:x1]
+        layer[..., :3] = source.image[y0:y1, x0:x1] * layer[..., 3:]
+        m = m.copy()
+        m[:, 2] += m[:, :2] @ (x0, y0)  # the layer's origin is (x0, y0) of the source
+        # Only the destination box the layer can reach is warped.
+        corners = np.array([[0, 0, 1], [x1 - x0, 0, 1], [0, y1 - y0, 1], [x1 - x0, y1 - y0, 1]], np.float64) @ m.T
+        dx0, dy0 = (max(0, int(np.floor(v)) - 1) for v in corners.min(0))
+        dx1, dy1 = min(width, int(np.ceil(corners[:, 0].max())) + 2), min(height, int(np.ceil(corners[:, 1].max())) + 2)
+        if dx1 <= dx0 or dy1 <= dy0:
+            continue
+        m[:, 2] -= (dx0, dy0)
+        moved = cv2.warpAffine(layer, m, (dx1 - dx0, dy1 - dy0), flags=cv2.INTER_LINEAR,
+                               borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+        a = moved[..., 3:]
+        colour[dy0:dy1, dx0:dx1] = moved[..., :3] + (1 - a) * colour[dy0:dy1, dx0:dx1]
+        alpha[dy0:dy1, dx0:dx1] = a[..., 0] + (1 - a[..., 0]) * alpha[dy0:dy1, dx0:dx1]
+    return colour, alpha
+
+
+class FrameBank:
+    """The target's training frames indexed by pose, and the warped prior they give for any pose.
+
+    Args:
+        frames: ``[T, H, W, 3]`` uint8 frames of the target video in bank framing (may be memory-mapped).
+        masks: ``[T, H, W]`` uint8 person masks in the same framing (:mod:`stage2_video.masks`).
+        keypoints: ``[T, 25, 3]`` the frames' poses in bank pixels.
+        members: frame indices the bank may return (training frames with a usable pose and a mask).
+        cache_size: source frames kept cut into parts (cutting costs a few milliseconds).
+    """
+
+    def __init__(self, frames: np.ndarray, masks: np.ndarray, keypoints: np.ndarray, members: np.ndarray,
+                 cache_size: int = 512) -> None:
+        self.frames, self.masks = frames, masks
+        self.keypoints = np.asarray(keypoints, np.float32)
+        self.members = np.asarray(members, np.int64)
+        self.size = (frames.shape[2], frames.shape[1])
+        self.described = descriptor(self.keypoints[self.members])
+        self._sources: OrderedDict[int, Source] = OrderedDict()
+        self._cache_size = cache_size
+
+    def __len__(self) -> int:
+        return len(self.members)
+
+    def source(self, t: int) -> Source:
+        """Frame ``t`` cut into parts (cached)."""
+        if t in self._sources:
+            self._sources.move_to_end(t)
+            return self._sources[t]
+        kp = self.keypoints[t]
+        labels = part_labels(np.asarray(self.masks[t]), kp)
+        image, torso = fill_torso(np.asarray(self.frames[t]), labels, kp)
+        source = Source(image, labels, torso, kp)
+        self._sources[t] = source
+        if len(self._sources) > self._cache_size:
+            self._sources.popitem(last=False)
+        return source
+
+    def retrieve(self, query: np.ndarray, exclude: tuple[int, int] | None = None,
+                 previous: dict[str, int] | None = None) -> dict[str, int]:
+        """The bank frame (video frame index) of each group for one ``[25, 3]`` pose (bank pixels).
+
+        ``exclude``: a ``[start, stop)`` range of frame indices never returned; ``previous``: last choices, kept
+        while within :data:`HYSTERESIS` of the best.
+        """
+        costs = group_costs(self.described, query)
+        allowed = np.ones(len(self.members), bool)
+        if exclude is not None:
+            allowed &= (self.members < exclude[0]) | (self.members >= exclude[1])
+        if not allowed.any():
+            raise ValueError("every frame of the bank is excluded")
+        choice = {}
+        for group, cost in costs.items():
+            cost = np.where(allowed, cost, np.inf)
+            best = int(cost.argmin())
+            if previous and group in previous:
+                kept = np.flatnonzero(self.members == previous[group])
+                if len(kept) and cost[kept[0]] <= cost[best] + HYSTERESIS:
+                    best = int(kept[0])
+            choice[group] = int(self.members[best])
+        return choice
+
+    def warp(self, choice: dict[str, int], target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`warp_parts` of the chosen frames onto ``target`` (``[25, 3]`` bank pixels)."""
+        return warp_parts({g: self.source(t) for g, t in choice.items()}, np.asarray(target, np.float32), self.size)
+
+
+class PriorRenderer:
+    """Warped priors for a sequence of poses, retrieval kept steady from one pose to the next.
+
+    ``exclude_frames``: frames within this many of a frame being learnt are not retrieved for it (training).
+    """
+
+    def __init__(self, bank: FrameBank, exclude_frames: int | None = None) -> None:
+        self.bank = bank
+        self.exclude_frames = exclude_frames
+        self.previous: dict[str, int] | None = None
+
+    def __call__(self, target: np.ndarray, plate_crop: np.ndarray, frame: int | None = None) -> np.ndarray:
+        """``[H, W, 4]`` uint8: the person warped onto ``target`` (``[25, 3]`` bank pixels) over ``plate_crop``
+        (``[H, W, 3]`` uint8, bank size), and the warp's alpha. ``frame``: the video frame being learnt, whose
+        neighbourhood is excluded."""
+        exclude = None
+        if frame is not None and self.exclude_frames is not None:
+            exclude = (frame - self.exclude_frames, frame + self.exclude_frames + 1)
+        self.previous = self.bank.retrieve(target, exclude, self.previous)
+        colour, alpha = self.bank.warp(self.previous, target)
+        base = colour + (1 - alpha[..., None]) * plate_crop
+        return np.concatenate([np.clip(base + 0.5, 0, 255), alpha[..., None] * 255 + 0.5], axis=2).astype(np.uint8)
+
+
+def bank_keypoints(keypoints: np.ndarray, framings: list[Framing]) -> np.ndarray:
+    """``[T, 25, 3]`` poses (canvas pixels) in the pixels of their frames' bank framings."""
+    out = np.asarray(keypoints, np.float32).copy()
+    for t, framing in enumerate(framings):
+        out[t, :, :2] = framing.points(out[t, :, :2])
+    return out
