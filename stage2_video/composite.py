@@ -3,8 +3,10 @@
 The appearance model sees and renders only a crop of the target's canvas (:class:`stage2_video.framing.Framing`).
 To show the dance in the target's scene, a background plate (the scene without the person) is estimated from
 the target video once: per pixel, the median of that pixel over up to ``MAX_PLATE_FRAMES`` frames in which the
-person (drawn from their poses with thick limbs, a head disc and a margin, all in torso lengths) does not cover
-it; pixels the person always covers are filled by inpainting. Each generated frame then has its framing
+person does not cover it; pixels the person always covers are filled by inpainting. Where the person is: their
+pose drawn with thick limbs, a head disc and a generous margin (:func:`stage2_video.masks.person_mask`), or,
+tighter, their segmented pixels grown a little together with the pose drawn with a small margin, so a person who
+stays on one spot leaves less to inpaint. Each generated frame then has its framing
 inverted (padding dropped, resized back onto its crop box) and is blended over the plate through a soft mask
 around the generated pose: the same drawing, feathered with a Gaussian and faded out towards the box's edges,
 so neither the box nor the mask's outline shows.
@@ -12,7 +14,7 @@ so neither the box nor the mask's outline shows.
 
 from __future__ import annotations
 
-import hashlib
+import contextlib
 import math
 import os
 import tempfile
@@ -27,9 +29,11 @@ from dancesynth.core.draw import draw_pose
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import read_frames
 from dancesynth.core.progress import track
-from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX, NECK, ROOT, PoseSequence, body_scale, true_runs
-from stage2_video.data import POSES_FILE, cache_file
+from dancesynth.core.skeleton import PoseSequence, body_scale, true_runs
+from stage2_video.data import POSES_FILE, cache_file, poses_digest
+from stage2_video.extract import native_logs_hidden_unless_info
 from stage2_video.framing import MIN_CONFIDENCE, Framing
+from stage2_video.masks import Segmenter, draw_person, frame_mask, person_mask, torso_length
 
 PLATE_FILE = "background.png"
 # Frames sampled for the plate's median: enough for a stable median, few enough to stay quick for long videos.
@@ -47,80 +51,19 @@ OBSERVED_CONFIDENCE = 0.2
 # guess too: drawn, it would hide the same stretch of scene in every frame, so the plate leaves it out.
 MAX_GUESS_SECONDS = 0.5
 
-# Person drawing, in torso lengths (Neck-MidHip): limb thickness, head disc radius, hand length past the wrist.
-LIMB_WIDTH = 0.45
-HEAD_RADIUS = 0.4
-HAND_LENGTH = 0.35
 # Growth of the drawn person: generous for the plate (pose errors, motion blur, loose clothes), smaller for the
 # composite, where the feather (Gaussian sigma) then fades the generated frame out beyond the person.
 PLATE_MARGIN = 0.35
+# With segmented masks: the pose's margin, and the growth of the segmented pixels (blur, hair), in torso lengths.
+SEGMENTED_PLATE_MARGIN = 0.05
+SEGMENTED_PLATE_GROWTH = 0.1
 COMPOSITE_MARGIN = 0.2
 FEATHER_SIGMA = 0.08
 # Width of the fade to 0 at the crop box's edges inside the canvas, where a limb reaching out of the box is cut.
 EDGE_FADE = 0.3
-# A frame's torso may look shorter (bending towards the camera) but not below this share of the reference.
-MIN_TORSO_SHARE = 0.7
 # The soft mask is drawn and blurred at a resolution where the feather is about this many pixels, then resized.
 MASK_SIGMA_PIXELS = 3.0
 
-_FACE = [JOINT_INDEX[n] for n in ("Nose", "REye", "LEye", "REar", "LEar")]
-_TORSO = [JOINT_INDEX[n] for n in ("Neck", "RShoulder", "LShoulder", "MidHip", "RHip", "LHip")]
-_FOREARMS = [(JOINT_INDEX["RElbow"], JOINT_INDEX["RWrist"]), (JOINT_INDEX["LElbow"], JOINT_INDEX["LWrist"])]
-_SHIFT = 4  # sub-pixel bits for OpenCV drawing
-
-
-def torso_length(keypoints: np.ndarray, reference: float) -> float:
-    """One pose's Neck-MidHip length in pixels, at least ``MIN_TORSO_SHARE`` of ``reference`` (pixels, e.g. the
-    sequence's :func:`body_scale`), which also stands in when the neck or hip is absent."""
-    kp = np.asarray(keypoints)
-    if kp[NECK, 2] >= MIN_CONFIDENCE and kp[ROOT, 2] >= MIN_CONFIDENCE:
-        return max(float(np.linalg.norm(kp[NECK, :2] - kp[ROOT, :2])), MIN_TORSO_SHARE * reference)
-    return reference
-
-
-def draw_person(mask: np.ndarray, xy: np.ndarray, present: np.ndarray, torso: float, margin: float) -> np.ndarray:
-    """Fill (255) the region a person covers on ``mask`` (``[h, w]`` uint8, in place) and return it.
-
-    Args:
-        xy: ``[25, 2]`` joint positions in mask pixels; ``present``: ``[25]`` bool.
-        torso: the person's torso length in mask pixels; limbs, head and hands are sized by it.
-        margin: growth in mask pixels on every side.
-    """
-    pts = np.round(np.nan_to_num(xy) * (1 << _SHIFT)).astype(np.int64)
-    limit = (1 << _SHIFT) * 4 * max(mask.shape)  # OpenCV's fixed-point maths overflows far off the canvas
-    pts = np.clip(pts, -limit, limit)
-    thickness = max(1, round(LIMB_WIDTH * torso + 2 * margin))
-    for a, b in BODY25_LIMBS:
-        if present[a] and present[b]:
-            cv2.line(mask, tuple(map(int, pts[a])), tuple(map(int, pts[b])), 255, thickness, cv2.LINE_8, _SHIFT)
-    for elbow, wrist in _FOREARMS:
-        if present[elbow] and present[wrist]:
-            direction = xy[wrist] - xy[elbow]
-            tip = xy[wrist] + direction / max(float(np.linalg.norm(direction)), 1e-6) * HAND_LENGTH * torso
-            tip = np.clip(np.round(tip * (1 << _SHIFT)), -limit, limit).astype(np.int64)
-            cv2.line(mask, tuple(map(int, pts[wrist])), tuple(map(int, tip)), 255, thickness, cv2.LINE_8, _SHIFT)
-    radius = (thickness // 2) << _SHIFT
-    for j in np.flatnonzero(present):
-        cv2.circle(mask, tuple(map(int, pts[j])), radius, 255, -1, cv2.LINE_8, _SHIFT)
-    body = [j for j in _TORSO if present[j]]
-    if len(body) >= 3:
-        hull = cv2.convexHull(pts[body].astype(np.int32))
-        cv2.fillConvexPoly(mask, hull, 255, cv2.LINE_8, _SHIFT)
-    face = [j for j in _FACE if present[j]]
-    if face:
-        centre = np.round(xy[face].mean(axis=0) * (1 << _SHIFT)).astype(np.int64).clip(-limit, limit)
-        cv2.circle(mask, tuple(map(int, centre)), round((HEAD_RADIUS * torso + margin) * (1 << _SHIFT)), 255, -1,
-                   cv2.LINE_8, _SHIFT)
-    return mask
-
-
-def person_mask(keypoints: np.ndarray, width: int, height: int, reference: float, margin: float) -> np.ndarray:
-    """``[height, width]`` bool: where the person of one ``[25, 3]`` pose (canvas pixels) stands, grown by
-    ``margin`` torso lengths; ``reference`` is the sequence's torso length in pixels."""
-    kp = np.asarray(keypoints, np.float32)
-    torso = torso_length(kp, reference)
-    mask = np.zeros((height, width), np.uint8)
-    return draw_person(mask, kp[:, :2], kp[:, 2] >= MIN_CONFIDENCE, torso, margin * torso) > 0
 
 
 def plate_frames(poses: PoseSequence, max_frames: int = MAX_PLATE_FRAMES) -> np.ndarray:
@@ -172,8 +115,22 @@ def _band_median(pixels: np.ndarray, covered: np.ndarray) -> tuple[np.ndarray, n
     return np.minimum(median, 255).astype(np.uint8), free < MIN_FREE_SAMPLES
 
 
+def plate_cover(frame: np.ndarray, keypoints: np.ndarray, reference: float,
+                segmenter: Segmenter | None) -> np.ndarray:
+    """``[H, W]`` bool: where the person of one ``[25, 3]`` pose may cover the ``[H, W, 3]`` frame, for the plate:
+    the pose drawn with :data:`PLATE_MARGIN`, or with a ``segmenter`` their segmented pixels grown by
+    :data:`SEGMENTED_PLATE_GROWTH` and the pose drawn with :data:`SEGMENTED_PLATE_MARGIN`."""
+    height, width = frame.shape[:2]
+    if segmenter is None:
+        return person_mask(keypoints, width, height, reference, PLATE_MARGIN)
+    grow = max(1, round(SEGMENTED_PLATE_GROWTH * reference))
+    segmented = cv2.dilate(frame_mask(segmenter, frame, keypoints, reference).astype(np.uint8),
+                           cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * grow + 1, 2 * grow + 1))) > 0
+    return segmented | person_mask(keypoints, width, height, reference, SEGMENTED_PLATE_MARGIN)
+
+
 def background_plate(frames: Iterable[np.ndarray], poses: PoseSequence, max_frames: int = MAX_PLATE_FRAMES,
-                     work_dir: str | os.PathLike | None = None) -> np.ndarray:
+                     work_dir: str | os.PathLike | None = None, segment: bool = False) -> np.ndarray:
     """The target's scene without the person: ``[height, width, 3]`` uint8 RGB at the poses' canvas size.
 
     Args:
@@ -184,6 +141,7 @@ def background_plate(frames: Iterable[np.ndarray], poses: PoseSequence, max_fram
         work_dir: folder for the temporary copy of the sampled frames (default the system's temporary folder);
             it takes ``max_frames x height x width x 4`` bytes of disk, while memory stays within a few times
             ``BAND_BYTES`` whatever the video's length and size.
+        segment: tell where the person is by segmenting their pixels (:func:`plate_cover`), not by the pose alone.
     """
     picks = plate_frames(poses, max_frames)
     if len(picks) == 0:
@@ -198,7 +156,13 @@ def background_plate(frames: Iterable[np.ndarray], poses: PoseSequence, max_fram
     with tempfile.TemporaryDirectory(dir=work_dir, prefix=".plate-") as tmp:
         pixels_path, covered_path = Path(tmp) / "pixels", Path(tmp) / "covered"
         slot, count = 0, 0
-        with open(pixels_path, "wb") as pixels, open(covered_path, "wb") as covered:
+        with contextlib.ExitStack() as stack:
+            pixels, covered = (stack.enter_context(open(p, "wb")) for p in (pixels_path, covered_path))
+            segmenter = None
+            if segment:
+                stack.enter_context(native_logs_hidden_unless_info())
+                segmenter = Segmenter()
+                stack.callback(segmenter.close)
             for t, frame in enumerate(frames):
                 count = t + 1
                 if t == picks[slot]:
@@ -206,7 +170,7 @@ def background_plate(frames: Iterable[np.ndarray], poses: PoseSequence, max_fram
                         raise DancesynthError(f"The video's frames are {frame.shape[1]}x{frame.shape[0]} but the "
                                               f"poses are for {width}x{height}; pass the poses extracted from it.")
                     pixels.write(np.ascontiguousarray(frame, np.uint8).tobytes())
-                    covered.write(person_mask(keypoints[t], width, height, reference, PLATE_MARGIN).tobytes())
+                    covered.write(plate_cover(frame, keypoints[t], reference, segmenter).tobytes())
                     slot += 1
                     if slot == len(picks):
                         break
@@ -223,13 +187,6 @@ def background_plate(frames: Iterable[np.ndarray], poses: PoseSequence, max_fram
     return plate
 
 
-def poses_digest(poses: PoseSequence) -> str:
-    """SHA-256 (hex) of the pose array and its canvas: what a plate made from these poses depends on."""
-    digest = hashlib.sha256(np.ascontiguousarray(poses.keypoints).tobytes())
-    digest.update(f"{poses.width}x{poses.height}".encode())
-    return digest.hexdigest()
-
-
 def read_plate(path: Path) -> np.ndarray:
     """A plate written by :func:`cache_plate` -> ``[H, W, 3]`` uint8 RGB."""
     image = cv2.imread(str(path), cv2.IMREAD_COLOR)
@@ -238,18 +195,20 @@ def read_plate(path: Path) -> np.ndarray:
     return cv2.cvtColor(image, cv2.COLOR_BGR2RGB)
 
 
-def cache_plate(video: Path, poses: PoseSequence, run_dir: Path) -> np.ndarray:
-    """The plate of ``video`` (:func:`background_plate`), cached as ``RUN_DIR/background.png`` with a key file
-    naming the video's content and the poses; a plate made from another video or other poses is rebuilt."""
+def cache_plate(video: Path, poses: PoseSequence, run_dir: Path, segment: bool = False) -> np.ndarray:
+    """The plate of ``video`` (:func:`background_plate`, ``segment`` as there), cached as
+    ``RUN_DIR/background.png`` with a key file naming the video's content, the poses and how the person was found;
+    a plate made otherwise is rebuilt."""
     path = Path(run_dir) / PLATE_FILE
 
     def write(tmp: Path) -> None:
         frames = track(read_frames(video), total=len(poses), desc="background", unit="frame")
-        plate = background_plate(frames, poses, work_dir=run_dir)
+        plate = background_plate(frames, poses, work_dir=run_dir, segment=segment)
         _, png = cv2.imencode(".png", cv2.cvtColor(plate, cv2.COLOR_RGB2BGR))
         tmp.write_bytes(png.tobytes())
 
-    cache_file(path, Path(video), write, poses=poses_digest(poses))
+    # Plates found from the poses alone keep the key they always had.
+    cache_file(path, Path(video), write, poses=poses_digest(poses), **({"segmented": True} if segment else {}))
     return read_plate(path)
 
 

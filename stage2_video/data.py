@@ -109,6 +109,13 @@ def cache_file(cache: Path, video: Path, write: Callable[[Path], None], **option
         write(tmp)
 
 
+def poses_digest(poses: PoseSequence) -> str:
+    """SHA-256 (hex) of the pose array and its canvas: what a plate made from these poses depends on."""
+    digest = hashlib.sha256(np.ascontiguousarray(poses.keypoints).tobytes())
+    digest.update(f"{poses.width}x{poses.height}".encode())
+    return digest.hexdigest()
+
+
 def load_or_extract_poses(video: Path, run_dir: Path, poses: Path | None) -> PoseSequence:
     """The target's poses: ``poses`` when given (e.g. ground truth of a synthetic video), else the run's cache
     when it was made for this video, else extracted from the video (then cached as ``RUN_DIR/poses.npz``)."""

@@ -1,12 +1,15 @@
-"""Person masks: where the target person's own pixels are in each frame, from BlazePose's segmentation.
+"""Person masks: where the target person is in each frame, drawn from the pose or segmented from the pixels.
+
+:func:`person_mask` draws a pose with thick limbs, a head disc and a margin, all in torso lengths: a generous
+region where the person may be, for the blend of the composite and as the fallback below.
 
 mediapipe's Pose graph (``enable_segmentation=True``, model bundled in the wheel) returns a soft person mask with
 the landmarks. It misses small figures in a large frame, so it runs on each frame's person crop (the box around
 that frame's pose, grown by :data:`CROP_GROWTH`), and what it returns is kept only near the pose (so a second
-person or a prop next to the target never counts). Frames where it finds nobody fall back to the pose drawn with
-thick limbs (:func:`stage2_video.composite.draw_person`). The masks are framed like the training frames
-(:class:`stage2_video.framing.Framing`) and cached in the run folder as a uint8 ``.npy`` memory map keyed by the
-video's content, the framing and the poses, like the frames (:func:`stage2_video.data.cache_file`).
+person or a prop next to the target never counts). Frames where it finds nobody fall back to :func:`person_mask`.
+The masks are framed like the training frames (:class:`stage2_video.framing.Framing`) and cached in the run folder
+as a uint8 ``.npy`` memory map keyed by the video's content, the framing and the poses, like the frames
+(:func:`stage2_video.data.cache_file`).
 """
 
 from __future__ import annotations
@@ -20,12 +23,21 @@ import numpy as np
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import read_frames
 from dancesynth.core.progress import track
-from dancesynth.core.skeleton import PoseSequence, body_scale
-from stage2_video.composite import person_mask, poses_digest
-from stage2_video.data import cache_file
+from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX, NECK, ROOT, PoseSequence, body_scale
+from stage2_video.data import cache_file, poses_digest
 from stage2_video.extract import native_logs_hidden_unless_info
 from stage2_video.framing import MIN_CONFIDENCE, Framing, VideoFraming
 
+# Person drawing, in torso lengths (Neck-MidHip): limb thickness, head disc radius, hand length past the wrist.
+LIMB_WIDTH = 0.45
+HEAD_RADIUS = 0.4
+HAND_LENGTH = 0.35
+# A frame's torso may look shorter (bending towards the camera) but not below this share of the reference.
+MIN_TORSO_SHARE = 0.7
+_FACE = [JOINT_INDEX[n] for n in ("Nose", "REye", "LEye", "REar", "LEar")]
+_TORSO = [JOINT_INDEX[n] for n in ("Neck", "RShoulder", "LShoulder", "MidHip", "RHip", "LHip")]
+_FOREARMS = [(JOINT_INDEX["RElbow"], JOINT_INDEX["RWrist"]), (JOINT_INDEX["LElbow"], JOINT_INDEX["LWrist"])]
+_SHIFT = 4  # sub-pixel bits for OpenCV drawing
 # The crop the segmenter sees: the pose's bounding box grown by this share of its longer side on every side.
 CROP_GROWTH = 0.3
 # Longest side the crop is resampled to (the segmenter itself works at 256 x 256).
@@ -36,6 +48,60 @@ MASK_THRESHOLD = 0.5
 KEEP_MARGIN = 0.6
 # Fallback where the segmenter finds nobody: the pose drawn with this margin (torso lengths).
 FALLBACK_MARGIN = 0.1
+
+
+def torso_length(keypoints: np.ndarray, reference: float) -> float:
+    """One pose's Neck-MidHip length in pixels, at least ``MIN_TORSO_SHARE`` of ``reference`` (pixels, e.g. the
+    sequence's :func:`body_scale`), which also stands in when the neck or hip is absent."""
+    kp = np.asarray(keypoints)
+    if kp[NECK, 2] >= MIN_CONFIDENCE and kp[ROOT, 2] >= MIN_CONFIDENCE:
+        return max(float(np.linalg.norm(kp[NECK, :2] - kp[ROOT, :2])), MIN_TORSO_SHARE * reference)
+    return reference
+
+
+def draw_person(mask: np.ndarray, xy: np.ndarray, present: np.ndarray, torso: float, margin: float) -> np.ndarray:
+    """Fill (255) the region a person covers on ``mask`` (``[h, w]`` uint8, in place) and return it.
+
+    Args:
+        xy: ``[25, 2]`` joint positions in mask pixels; ``present``: ``[25]`` bool.
+        torso: the person's torso length in mask pixels; limbs, head and hands are sized by it.
+        margin: growth in mask pixels on every side.
+    """
+    pts = np.round(np.nan_to_num(xy) * (1 << _SHIFT)).astype(np.int64)
+    limit = (1 << _SHIFT) * 4 * max(mask.shape)  # OpenCV's fixed-point maths overflows far off the canvas
+    pts = np.clip(pts, -limit, limit)
+    thickness = max(1, round(LIMB_WIDTH * torso + 2 * margin))
+    for a, b in BODY25_LIMBS:
+        if present[a] and present[b]:
+            cv2.line(mask, tuple(map(int, pts[a])), tuple(map(int, pts[b])), 255, thickness, cv2.LINE_8, _SHIFT)
+    for elbow, wrist in _FOREARMS:
+        if present[elbow] and present[wrist]:
+            direction = xy[wrist] - xy[elbow]
+            tip = xy[wrist] + direction / max(float(np.linalg.norm(direction)), 1e-6) * HAND_LENGTH * torso
+            tip = np.clip(np.round(tip * (1 << _SHIFT)), -limit, limit).astype(np.int64)
+            cv2.line(mask, tuple(map(int, pts[wrist])), tuple(map(int, tip)), 255, thickness, cv2.LINE_8, _SHIFT)
+    radius = (thickness // 2) << _SHIFT
+    for j in np.flatnonzero(present):
+        cv2.circle(mask, tuple(map(int, pts[j])), radius, 255, -1, cv2.LINE_8, _SHIFT)
+    body = [j for j in _TORSO if present[j]]
+    if len(body) >= 3:
+        hull = cv2.convexHull(pts[body].astype(np.int32))
+        cv2.fillConvexPoly(mask, hull, 255, cv2.LINE_8, _SHIFT)
+    face = [j for j in _FACE if present[j]]
+    if face:
+        centre = np.round(xy[face].mean(axis=0) * (1 << _SHIFT)).astype(np.int64).clip(-limit, limit)
+        cv2.circle(mask, tuple(map(int, centre)), round((HEAD_RADIUS * torso + margin) * (1 << _SHIFT)), 255, -1,
+                   cv2.LINE_8, _SHIFT)
+    return mask
+
+
+def person_mask(keypoints: np.ndarray, width: int, height: int, reference: float, margin: float) -> np.ndarray:
+    """``[height, width]`` bool: where the person of one ``[25, 3]`` pose (canvas pixels) stands, grown by
+    ``margin`` torso lengths; ``reference`` is the sequence's torso length in pixels."""
+    kp = np.asarray(keypoints, np.float32)
+    torso = torso_length(kp, reference)
+    mask = np.zeros((height, width), np.uint8)
+    return draw_person(mask, kp[:, :2], kp[:, 2] >= MIN_CONFIDENCE, torso, margin * torso) > 0
 
 
 def masks_file(framing: VideoFraming) -> str:

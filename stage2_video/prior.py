@@ -413,15 +413,17 @@ class FrameBank:
                  previous: dict[str, int] | None = None) -> dict[str, int]:
         """The bank frame (video frame index) of each group for one ``[25, 3]`` pose (bank pixels).
 
-        ``exclude``: a ``[start, stop)`` range of frame indices never returned; ``previous``: last choices, kept
-        while within :data:`HYSTERESIS` of the best.
+        ``exclude``: a ``[start, stop)`` range of frame indices never returned (when it covers the whole bank, only
+        the frames farthest from its centre are allowed); ``previous``: last choices, kept while within
+        :data:`HYSTERESIS` of the best.
         """
         costs = group_costs(self.described, query)
         allowed = np.ones(len(self.members), bool)
         if exclude is not None:
-            allowed &= (self.members < exclude[0]) | (self.members >= exclude[1])
-        if not allowed.any():
-            raise ValueError("every frame of the bank is excluded")
+            allowed = (self.members < exclude[0]) | (self.members >= exclude[1])
+            if not allowed.any():  # a bank shorter than the window: keep the farthest frames
+                distance = np.abs(self.members - (exclude[0] + exclude[1] - 1) / 2)
+                allowed = distance == distance.max()
         choice = {}
         for group, cost in costs.items():
             cost = np.where(allowed, cost, np.inf)

@@ -375,7 +375,8 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
         if isinstance(framing, FollowFraming) and "background" not in (overrides or {}):
             config = dataclasses.replace(config, background=True, blend=(overrides or {}).get("blend", True))
     frames = cache_frames(video, framing, run_dir, seq)
-    plate = cache_plate(video, seq, run_dir)  # made by rank 0; the other ranks read it after the barrier
+    # made by rank 0; the other ranks read it after the barrier
+    plate = cache_plate(video, seq, run_dir, segment=config.prior)
     if config.prior:
         bank_framing = scaled_framing(framing, config.prior_scale)
         bank_frames = cache_frames(video, bank_framing, run_dir, seq)

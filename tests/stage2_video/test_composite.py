@@ -19,10 +19,10 @@ from stage2_video.composite import (
     background_plate,
     cache_plate,
     load_plate,
-    person_mask,
     scene_compositor,
 )
 from stage2_video.framing import Framing, person_framing
+from stage2_video.masks import person_mask
 from stage2_video.train import KIND
 
 REAL = Path(__file__).parents[1] / "data" / "real_person"

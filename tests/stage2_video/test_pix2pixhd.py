@@ -5,6 +5,7 @@ from dancesynth.core.errors import DancesynthError
 from stage2_video.models.pix2pixhd import (
     LocalEnhancer,
     Pix2PixHD,
+    Pix2PixHDConfig,
     condition_channels,
     feature_matching_loss,
     foreground_target,
@@ -15,7 +16,8 @@ from stage2_video.vgg import NOTICE, VGGLoss, build_vgg_loss
 
 
 def _tiny(**kw):
-    return preset("small", width=32, height=32, ngf=4, n_downsample=2, n_blocks=1, ndf=4, **kw)
+    """pix2pixHD from label maps alone unless told otherwise (the seed's network, as the paper preset has it)."""
+    return Pix2PixHDConfig(width=32, height=32, ngf=4, n_downsample=2, n_blocks=1, ndf=4, **kw)
 
 
 @pytest.mark.parametrize("local", [False, True])
@@ -53,6 +55,25 @@ def test_blend_paints_over_the_background_crop(local):
 def test_blend_needs_the_background():
     with pytest.raises(DancesynthError, match="background"):
         _tiny(blend=True)
+    with pytest.raises(DancesynthError, match="blend"):
+        _tiny(background=True, prior=True)
+
+
+def test_the_prior_model_paints_over_the_warped_person_not_the_plate():
+    cfg = _tiny(background=True, blend=True, prior=True)
+    assert preset("small").prior and preset("medium").prior and not preset("paper").prior
+    model = Pix2PixHD(cfg)
+    # label map, plate crop, warped person over the plate, its alpha
+    label = torch.rand(2, condition_channels(cfg), 32, 32) * 2 - 1
+    assert label.shape[1] == 10
+    with torch.no_grad():
+        model.generator.inner.output_conv.bias[3] = -30.0  # mask shut: what it paints over, exactly
+    assert torch.allclose(model.generate(label), label[:, 6:9], atol=1e-5)
+    real = label[:, 6:9].clone()
+    real[:, :, :4] = -real[:, :, :4]  # the warp is wrong in the top rows only
+    label[:, :3] = 1.0  # the skeleton is drawn everywhere
+    wrong = foreground_target(label, real, prior=True)[:, 0]
+    assert wrong[:, :4].mean() > 0.5 and wrong[:, 4:].sum() == 0
 
 
 def test_size_must_divide_by_downsampling():

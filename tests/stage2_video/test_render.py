@@ -8,8 +8,9 @@ from dancesynth.core import device as device_module
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import probe_video
 from dancesynth.core.skeleton import PoseSequence
-from stage2_video.data import to_image
+from stage2_video.data import prior_images
 from stage2_video.framing import condition
+from stage2_video.prior import PriorRenderer
 from stage2_video.render import OpenVINOGenerator, load_appearance_model, render_frames, render_video
 
 
@@ -20,7 +21,7 @@ def test_render_streams_a_video_with_right_count_and_size(tiny_run, make_poses, 
     src = src.replace(src.keypoints * np.array([0.8, 0.8, 1], np.float32), fps=10.0)
     out = render_video(src, model, tmp_path / "out.mp4", progress=False)
     info = probe_video(out)
-    assert (info.width, info.height) == (32, 32)
+    assert model.scale == 2 and (info.width, info.height) == (64, 64)  # the prior's size
     assert info.num_frames == 9 and info.fps == pytest.approx(10.0)
     assert not list(tmp_path.glob("*.part*"))
 
@@ -31,7 +32,7 @@ def test_optimized_generator_matches_plain_forward(tiny_run):
     assert isinstance(fast.generator, OpenVINOGenerator) and isinstance(plain.generator, torch.nn.Module)
     poses = PoseSequence.load(tiny_run / "poses.npz").slice_frames(0, 5)
     for a, b in zip(render_frames(fast, poses, normalize=False), render_frames(plain, poses, normalize=False)):
-        assert a.shape == (32, 32, 3) and a.dtype == np.uint8
+        assert a.shape == (64, 64, 3) and a.dtype == np.uint8
         assert np.abs(a.astype(int) - b.astype(int)).max() <= 1
 
 
@@ -42,13 +43,14 @@ def test_bf16_rendering_stays_close_to_fp32(tiny_run, monkeypatch, optimize):
     exact = load_appearance_model(tiny_run, "cpu", optimize=optimize, precision="fp32")
     fast = load_appearance_model(tiny_run, "cpu", optimize=optimize, precision="bf16")
     poses = PoseSequence.load(tiny_run / "poses.npz").slice_frames(0, 8)
-    previous = None
+    previous, renderer = None, PriorRenderer(exact.bank)
     # Both conditioned on the fp32 previous frame: the barely trained network amplifies differences through its
     # recursion, which a trained one does not.
     for keypoints in poses.keypoints:
-        label = condition(keypoints, exact.framing, exact.plate)
-        reference = exact.step(label, previous)
-        a, b = to_image(fast.step(label, previous)[0]), to_image(reference[0])
+        high, low = prior_images(renderer, keypoints, exact.output_framing(exact.framing), exact.plate, (32, 32))
+        label = condition(keypoints, exact.framing, exact.plate, low)
+        reference, a, _ = exact.step_with_prior(label, high, previous)
+        b = fast.step_with_prior(label, high, previous)[1]
         diff = np.abs(a.astype(int) - b.astype(int))
         # Measured 0.35-0.51 grey levels on average and 4 at most.
         assert diff.mean() < 1 and diff.max() <= 8

@@ -53,7 +53,8 @@ def test_narrow_blocks_stay_direct_by_default():
 
 @pytest.mark.parametrize("blend", [False, True])
 def test_openvino_renderer_with_winograd_blocks_matches_plain_forward(blend):
-    config = preset("small", width=32, height=32, ngf=16, n_downsample=3, n_blocks=2, background=blend, blend=blend)
+    config = preset("small", width=32, height=32, ngf=16, n_downsample=3, n_blocks=2, background=blend, blend=blend,
+                    prior=False)
     generator = _randomise(Pix2PixHD(config).generator)
     channels = generator_channels(config)
     assert any(isinstance(m, WinogradResnetStack) for m in winograd_generator(generator, channels, 32, 32).modules())
