@@ -1,19 +1,32 @@
-"""Real footage benchmark: the appearance model on a real outdoor clip, and `dance --target` on it.
+"""Real footage benchmark: the appearance model on real clips the project never trained on, and `dance` with it.
 
-The clip is the demo video of the PyPI package ``sports2d`` (BSD-3-Clause, (c) perfanalytics): 7.7 s,
-1768x994, 30 fps, a fixed camera, two people (one jumping on a box, one walking by); the tracker keeps one.
+Clips (fetched from PyPI at benchmark time, never committed):
+  dancer   ``musicalgestures`` 1.32.0 (GPL-3.0-or-later), ``musicalgestures/examples/dancer.avi``: 63 s, 518x496,
+           25 fps, one dancer in black with coloured gloves, static camera, blue backdrop.
+  sports2d ``sports2d`` 0.8.34 (BSD-3-Clause, (c) perfanalytics), its demo video: 7.7 s, 1768x994, 30 fps, a fixed
+           camera, two people (one jumping on a box, one walking by); the tracker keeps one. The hard case.
 
-    python benchmarks/real_footage.py fetch            # pip download sports2d (no dependencies) into the cache
-    python benchmarks/real_footage.py run --minutes 10 --presets small medium
+    python benchmarks/real_footage.py fetch
+    python benchmarks/real_footage.py run --clip dancer --minutes 10 --rows plate warp trained today
 
-``run`` trains (or reuses, through the appearance cache of `dance --target`) one model per preset for
-``--minutes``, then prints per preset: training minutes and steps, held-out SSIM / PSNR at model resolution,
-PCK@0.1 of BlazePose run on the held-out frames of the whole scene (the generated crops composited into it, and
-the real frames, the ceiling) against the commanded poses, and the wall time of `dance --target` for a
-``--dance-seconds`` segment of a real song with the cached model (training excluded; decoding, generation,
-compiling the renderer, rendering, compositing and encoding at the clip's resolution included) and the frames per
-second of its frame loop (rendering, compositing and encoding; above the clip's 30 fps is real time). It writes
-``docs/real_footage/<preset>.png``: held-out frames, real | composited into the scene, and frames of the dance.
+Rows (each model trained, or resumed, in ``--model-cache`` for ``--minutes`` on this machine; 0 = as it is):
+  plate    the background plate alone (no person): the floor of every measure;
+  warp     the warped prior alone (the default preset trained 0 minutes: the person's own pixels moved part by part);
+  trained  the default preset (warped prior + pix2pixHD repairing it) trained ``--minutes``;
+  today    the network without the prior (pix2pixHD from label maps, the plate blend only where the crop follows
+           the person), trained ``--minutes``: the model before the warped prior;
+  real     the real held-out frames: the ceiling of PCK.
+
+Every row is scored on the held-out last 15 % of the clip (never trained on, never in the frame bank), rendered from
+the real poses and composited into the full frame, on "dance frames": held-out frames whose pose has a torso and
+differs from the clip's median pose by more than ``DANCE_DISTANCE`` torso lengths per joint on average (standing
+still scores the plate's and the network's easy case). Printed per row: PCK@0.1 and @0.2 (BlazePose run on the
+composited frame against the real pose, torso-normalised), SSIM and PSNR inside the real person's box (grown by
+``BOX_MARGIN``), training minutes, steps and steps/s, the warp's milliseconds per frame, and for ``trained`` the
+frames/s of `dance`'s frame loop with the cached model on a ``--dance-seconds`` segment of a real song. PCK is
+partly circular for a warp (its joints land on the target by construction): read it with the image measures.
+Writes ``docs/real_footage/<clip>.png``: 8 held-out frames, real | warped prior | trained output (| today), and
+8 frames of the clip's person dancing to the song.
 """
 
 from __future__ import annotations
@@ -24,37 +37,157 @@ import sys
 import tempfile
 import time
 import zipfile
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
-from eval_video import extracted, held_out_quality
+from eval_video import extracted
 
 from apps.pipeline import dance
-from dancesynth.core.checkpoint import load_meta
+from dancesynth.core.checkpoint import has_checkpoint, load_meta
 from dancesynth.core.media import read_frames
-from stage2_video.cache import appearance_model_for
+from dancesynth.core.skeleton import NECK, ROOT, PoseSequence
 from stage2_video.composite import scene_compositor
-from stage2_video.quality import pck
-from stage2_video.render import load_appearance_model
-from stage2_video.train import KIND
+from stage2_video.data import POSES_FILE, load_or_extract_poses, prior_images, split_ranges
+from stage2_video.framing import FollowFraming, condition, usable_frames, video_framing
+from stage2_video.models.pix2pixhd import preset as preset_config
+from stage2_video.prior import PriorRenderer
+from stage2_video.quality import pck, psnr, ssim
+from stage2_video.render import load_appearance_model, render_layers
+from stage2_video.train import KIND, TrainOptions, train_video
 
-PACKAGE = "sports2d==0.8.34"
-MEMBERS = {"Sports2D/Demo/demo.mp4": "demo.mp4", "sports2d-0.8.34.dist-info/licenses/LICENSE": "LICENSE"}
+CLIPS = {
+    "dancer": ("musicalgestures==1.32.0", "musicalgestures-*.whl", {
+        "musicalgestures/examples/dancer.avi": "dancer.avi",
+        "musicalgestures-1.32.0.dist-info/licenses/LICENSE": "dancer-LICENSE"}),
+    "sports2d": ("sports2d==0.8.34", "sports2d-*.whl", {
+        "Sports2D/Demo/demo.mp4": "sports2d.mp4", "sports2d-0.8.34.dist-info/licenses/LICENSE": "sports2d-LICENSE"}),
+}
 DEFAULT_CACHE = Path.home() / ".cache" / "dancesynth" / "real-footage"
 REPO = Path(__file__).resolve().parent.parent
 SONG = REPO / "tests" / "data" / "real_song" / "escape_from_chaosland_40-65s.ogg"
+# A held-out frame is a dance frame when its joints lie this far (torso lengths, mean) from the clip's median pose.
+DANCE_DISTANCE = 0.25
+# The person's box for SSIM / PSNR: the real pose's joints' box grown by this share of its longer side.
+BOX_MARGIN = 0.15
+SHEET_FRAMES = 8
 
 
-def fetch(cache: Path) -> Path:
-    """Download the sports2d wheel (no dependencies) and extract the clip and its licence into ``cache``."""
+def fetch(cache: Path) -> None:
+    """Download each clip's wheel (no dependencies) and extract the clip and its licence into ``cache``."""
     cache.mkdir(parents=True, exist_ok=True)
-    subprocess.run([sys.executable, "-m", "pip", "download", PACKAGE, "--no-deps", "-d", str(cache)], check=True)
-    wheel = next(cache.glob("sports2d-*.whl"))
-    with zipfile.ZipFile(wheel) as z:
-        for member, name in MEMBERS.items():
-            (cache / name).write_bytes(z.read(member))
-    return cache / "demo.mp4"
+    for requirement, pattern, members in CLIPS.values():
+        subprocess.run([sys.executable, "-m", "pip", "download", requirement, "--no-deps", "-d", str(cache)],
+                       check=True)
+        with zipfile.ZipFile(next(cache.glob(pattern))) as z:
+            for member, name in members.items():
+                (cache / name).write_bytes(z.read(member))
+                print(f"wrote {cache / name}")
+
+
+def clip_path(cache: Path, clip: str) -> Path:
+    path = cache / next(name for name in CLIPS[clip][2].values() if not name.endswith("LICENSE"))
+    if not path.is_file():
+        raise SystemExit(f"{path} is missing; run `python benchmarks/real_footage.py fetch` first.")
+    return path
+
+
+def train_row(video: Path, run: Path, row: str, minutes: float, preset: str) -> Path:
+    """The run of ``row`` trained (or resumed) until it has ``minutes`` in all."""
+    run.mkdir(parents=True, exist_ok=True)
+    overrides = None
+    if row == "today":
+        # Before the prior the fixed crop trained without the plate; a following crop turned the plate blend on.
+        seq = load_or_extract_poses(video, run, None)
+        config = preset_config(preset)
+        follow = isinstance(video_framing(seq, config.width, config.height), FollowFraming)
+        overrides = {"prior": False, "background": follow, "blend": follow}
+    trained = load_meta(run, KIND).get("trained_seconds", 0.0) if has_checkpoint(run) else None
+    budget = minutes if trained is None else max(0.0, minutes - trained / 60)
+    if trained is None or budget > 1 / 60:
+        train_video(video, run, preset, TrainOptions(minutes=budget), resume=trained is not None,
+                    overrides=overrides, device="cpu")
+    return run
+
+
+def dance_frames(poses: PoseSequence, frames: range) -> list[int]:
+    """The frames of ``frames`` with a usable pose that differs from the clip's median pose (see module doc)."""
+    usable = usable_frames(poses)
+    torso = np.linalg.norm(poses.xy[:, NECK] - poses.xy[:, ROOT], axis=-1)
+    relative = (poses.xy - poses.xy[:, ROOT:ROOT + 1]) / np.maximum(torso, 1e-6)[:, None, None]
+    median = np.median(relative[usable], axis=0)
+    seen = poses.confidence >= 0.05
+    distance = np.array([np.linalg.norm(relative[t] - median, axis=-1)[seen[t]].mean() if seen[t].any() else 0.0
+                         for t in range(len(poses))])
+    return [t for t in frames if usable[t] and distance[t] > DANCE_DISTANCE]
+
+
+def person_box(keypoints: np.ndarray, width: int, height: int) -> tuple[int, int, int, int]:
+    seen = keypoints[:, 2] >= 0.05
+    lo, hi = keypoints[seen, :2].min(0), keypoints[seen, :2].max(0)
+    grow = BOX_MARGIN * float((hi - lo).max())
+    x0, y0 = (int(max(0, v - grow)) for v in lo)
+    return x0, y0, int(min(width, hi[0] + grow + 1)), int(min(height, hi[1] + grow + 1))
+
+
+@dataclass
+class Scored:
+    """One row's measures: over every usable held-out frame (``_all``) and over the dance frames."""
+
+    row: str
+    frames: list[np.ndarray]  # the dance frames, composited
+    pck1_all: float
+    pck1: float
+    pck2: float
+    ssim_all: float
+    ssim: float
+    psnr: float
+    minutes: float = 0.0
+    steps: int = 0
+    warp_ms: float = float("nan")
+
+
+def rendered(run: Path, poses: PoseSequence, picks: list[int]) -> tuple[list[np.ndarray], float]:
+    """The composited full frames of ``run`` for the frames ``picks`` (ascending; rendered in sequence over the
+    whole range they span, as `dance` renders) and the warp's milliseconds per frame (NaN without a prior)."""
+    model = load_appearance_model(run, "cpu")
+    compositor = scene_compositor(run, model.canvas)
+    start, stop = picks[0], picks[-1] + 1
+    framings = model.framing.frames(poses)[start:stop]
+    out = []
+    for t, keypoints, framing, (frame, coverage) in zip(range(start, stop), poses.keypoints[start:stop], framings,
+                                                          render_layers(model, poses.slice_frames(start, stop),
+                                                                        normalize=False, framings=framings)):
+        if t in picks:
+            out.append(compositor.frame(frame, keypoints, model.output_framing(framing), coverage))
+    warp_ms = float("nan")
+    if model.bank is not None:
+        renderer, size = PriorRenderer(model.bank), (model.config.width, model.config.height)
+        began = time.perf_counter()
+        for t in range(start, stop):
+            high, low = prior_images(renderer, poses.keypoints[t], model.output_framing(framings[t - start]),
+                                     model.plate, size)
+            condition(poses.keypoints[t], framings[t - start], model.plate, low)
+        warp_ms = 1000 * (time.perf_counter() - began) / (stop - start)
+    return out, warp_ms
+
+
+def score(row: str, frames: list[np.ndarray], reals: list[np.ndarray], commanded: PoseSequence,
+          dancing: list[bool]) -> Scored:
+    """``frames`` against ``reals`` and their poses ``commanded`` (every usable held-out frame; ``dancing`` marks
+    the dance frames)."""
+    found = extracted(frames, commanded.fps)
+    hit = np.array(dancing)
+    boxes = [person_box(k, commanded.width, commanded.height) for k in commanded.keypoints]
+    crops = [(f[y0:y1, x0:x1], r[y0:y1, x0:x1]) for f, r, (x0, y0, x1, y1) in zip(frames, reals, boxes)]
+    ssims = np.array([ssim(a, b) for a, b in crops])
+    psnrs = np.array([psnr(a, b) for a, b in crops])
+    subset = np.flatnonzero(hit)
+    dance_found, dance_poses = found.replace(found.keypoints[subset]), commanded.replace(commanded.keypoints[subset])
+    return Scored(row, [frames[i] for i in subset], pck(found, commanded, 0.1), pck(dance_found, dance_poses, 0.1),
+                  pck(dance_found, dance_poses, 0.2), float(ssims.mean()), float(ssims[hit].mean()),
+                  float(psnrs[hit].mean()))
 
 
 def strip(images: list[np.ndarray], height: int = 240) -> np.ndarray:
@@ -63,74 +196,87 @@ def strip(images: list[np.ndarray], height: int = 240) -> np.ndarray:
                                       interpolation=cv2.INTER_AREA) for im in images], axis=1)
 
 
-def composited_frames(run: Path, scored) -> list[np.ndarray]:
-    """The generated frames of ``scored`` (:class:`eval_video.HeldOut`) composited into the whole scene."""
-    compositor = scene_compositor(run, load_appearance_model(run, "cpu", optimize=False).canvas)
-    return [compositor.frame(g, kp, f) for g, kp, f in zip(scored.generated, scored.commanded.keypoints,
-                                                            scored.framings)]
-
-
-def contact_sheet(reals: list[np.ndarray], composited: list[np.ndarray], dance_video: Path, out: Path,
-                  count: int = 3) -> None:
-    """Rows: real held-out frame | the model's frame composited into the scene; last two rows: frames of the dance."""
-    rows = [strip([reals[i], composited[i]]) for i in np.linspace(0, len(reals) - 1, count).astype(int)]
-    dance_frames = list(read_frames(dance_video))
-    picks = [dance_frames[i] for i in np.linspace(0, len(dance_frames) - 1, 4).astype(int)]
-    rows += [strip(picks[:2]), strip(picks[2:])]
+def contact_sheet(columns: list[list[np.ndarray]], dance_video: Path | None, out: Path) -> None:
+    """Rows of held-out frames (one column per list: real, prior, output, ...), then frames of the dance."""
+    picks = np.linspace(0, len(columns[0]) - 1, SHEET_FRAMES).astype(int)
+    rows = [strip([column[i] for column in columns]) for i in picks]
+    if dance_video is not None:
+        frames = list(read_frames(dance_video))
+        chosen = [frames[i] for i in np.linspace(0, len(frames) - 1, SHEET_FRAMES).astype(int)]
+        half = SHEET_FRAMES // 2
+        width = rows[0].shape[1]
+        for group in (chosen[:half], chosen[half:]):
+            row = strip(group)
+            pad = np.zeros((row.shape[0], max(0, width - row.shape[1]), 3), np.uint8)
+            rows.append(cv2.resize(np.concatenate([row, pad], 1), (width, row.shape[0])))
     out.parent.mkdir(parents=True, exist_ok=True)
     cv2.imwrite(str(out), cv2.cvtColor(np.concatenate(rows), cv2.COLOR_RGB2BGR))
 
 
 def run(args: argparse.Namespace) -> None:
-    clip = args.cache / "demo.mp4"
-    if not clip.is_file():
-        raise SystemExit(f"{clip} is missing; run `python benchmarks/real_footage.py fetch` first.")
-    rows = []
+    video = clip_path(args.cache, args.clip)
+    runs = args.model_cache / args.clip
+    results: dict[str, Scored] = {}
+    dance_fps, dance_video = float("nan"), None
     with tempfile.TemporaryDirectory() as tmp:
-        for preset in args.presets:
-            start = time.perf_counter()
-            run_dir = appearance_model_for(clip, args.minutes, preset, args.model_cache)
-            trained = time.perf_counter() - start
-            held_out = held_out_quality(run_dir, device="cpu")
-            out = Path(tmp) / f"{preset}.mp4"
-            start = time.perf_counter()
-            made = dance(SONG, out, target=clip, cache=args.model_cache, train_minutes=args.minutes,
-                         preset=preset, duration=args.dance_seconds, device="cpu")
-            dance_s = time.perf_counter() - start
-            reals = [frame for t, frame in enumerate(read_frames(clip)) if t in held_out.frames]
-            composited = composited_frames(run_dir, held_out)
-            contact_sheet(reals, composited, out, args.sheets / f"{preset}.png")
-            fps = held_out.commanded.fps
-            scene = [pck(extracted(frames, fps), held_out.commanded) for frames in (composited, reals)]
-            seen = held_out_quality(run_dir, device="cpu", training_frames=True)
-            seen_scene = pck(extracted(composited_frames(run_dir, seen), fps), seen.commanded)
+        for row in args.rows:
+            if row in ("plate", "real"):
+                continue
+            minutes = 0.0 if row == "warp" else args.minutes
+            run_dir = train_row(video, runs / f"{row}-{minutes:g}min", row, minutes, args.preset)
+            poses = PoseSequence.load(run_dir / POSES_FILE)
+            held_out = split_ranges(len(poses), preset_config(args.preset).val_fraction)[1]
+            usable = usable_frames(poses)
+            picks = [t for t in held_out if usable[t]]
+            dancing = [t in set(dance_frames(poses, held_out)) for t in picks]
+            commanded = poses.replace(poses.keypoints[picks])
+            frames, warp_ms = rendered(run_dir, poses, picks)
+            reals = [f for t, f in enumerate(read_frames(video)) if t in set(picks)]
             meta = load_meta(run_dir, KIND)
-            rows.append((preset, meta["trained_seconds"] / 60, meta["step"], held_out.ssim, held_out.psnr,
-                         *scene, seen.ssim, seen_scene, trained, dance_s, len(made.poses) / made.render_seconds))
-    print(f"clip {clip}: {args.minutes:g} min per model; dance segment {args.dance_seconds:g} s of {SONG.name}")
-    print("SSIM / PSNR: held-out frames at model resolution; PCK@0.1: BlazePose on the held-out frames of the whole")
-    print("scene (composited | real, the ceiling) vs the commanded poses; 'seen': the same on as many of the last")
-    print("training frames (learnt vs generalised); call s: this run's first call (0 if cached)")
-    print(f"{'preset':<8} {'train min':>9} {'steps':>6} {'SSIM':>6} {'PSNR dB':>8} {'PCK gen':>8} {'PCK real':>9} "
-          f"{'SSIM seen':>9} {'PCK seen':>8} {'call s':>7} {'dance s':>8} {'x real time':>11} {'render fps':>10}")
-    for preset, minutes, steps, s, p, pg, pr, ss, ps, call, d, fps in rows:
-        print(f"{preset:<8} {minutes:9.1f} {steps:6d} {s:6.3f} {p:8.2f} {pg:8.3f} {pr:9.3f} {ss:9.3f} {ps:8.3f} "
-              f"{call:7.0f} {d:8.1f} {args.dance_seconds / d:11.2f} {fps:10.1f}")
+            results[row] = score(row, frames, reals, commanded, dancing)
+            results[row].minutes, results[row].steps = meta["trained_seconds"] / 60, meta["step"]
+            results[row].warp_ms = warp_ms
+            if "real" in args.rows and "real" not in results:
+                results["real"] = score("real", reals, reals, commanded, dancing)
+            if "plate" in args.rows and "plate" not in results:
+                plate = scene_compositor(run_dir, (poses.width, poses.height)).plate
+                results["plate"] = score("plate", [plate] * len(reals), reals, commanded, dancing)
+            if row == "trained":
+                dance_video = Path(tmp) / "dance.mp4"
+                made = dance(SONG, dance_video, video_model=run_dir, duration=args.dance_seconds, device="cpu")
+                dance_fps = len(made.poses) / made.render_seconds
+        columns = [results[r].frames for r in ("real", "warp", "trained", "today") if r in results]
+        if len(columns) > 1:
+            contact_sheet(columns, dance_video, args.sheets / f"{args.clip}.png")
+    print(f"clip {video.name}: {len(picks)} usable held-out frames of {len(held_out)}, {sum(dancing)} dance frames; "
+          f"{args.minutes:g} min per trained model on this machine; `dance` frame loop {dance_fps:.1f} frames/s "
+          f"({args.dance_seconds:g} s)")
+    print(f"{'row':<8} {'PCK@0.1 all':>11} {'SSIM all':>8} | {'dance: PCK@0.1':>14} {'PCK@0.2':>7} {'SSIM':>6} "
+          f"{'PSNR':>6} | {'train min':>9} {'steps':>6} {'steps/s':>7} {'warp ms':>7}")
+    for row in ("plate", "warp", "trained", "today", "real"):
+        if row in results:
+            r = results[row]
+            rate = r.steps / (60 * r.minutes) if r.minutes else float("nan")
+            print(f"{row:<8} {r.pck1_all:11.3f} {r.ssim_all:8.3f} | {r.pck1:14.3f} {r.pck2:7.3f} {r.ssim:6.3f} "
+                  f"{r.psnr:6.2f} | {r.minutes:9.1f} {r.steps:6d} {rate:7.3f} {r.warp_ms:7.1f}")
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("command", choices=("fetch", "run"))
-    ap.add_argument("--cache", type=Path, default=DEFAULT_CACHE, help="where the clip is kept")
-    ap.add_argument("--model-cache", type=Path, default=None,
-                    help="appearance-model cache (default: dance --target's, under ~/.cache/dancesynth)")
-    ap.add_argument("--minutes", type=float, default=10.0, help="training minutes per model (default 10)")
-    ap.add_argument("--presets", nargs="+", default=["small", "medium"])
+    ap.add_argument("--clip", choices=tuple(CLIPS), default="dancer")
+    ap.add_argument("--cache", type=Path, default=DEFAULT_CACHE, help="where the clips are kept")
+    ap.add_argument("--model-cache", type=Path, default=DEFAULT_CACHE / "models",
+                    help="where each row's model is trained (kept, so a later run with more minutes resumes it)")
+    ap.add_argument("--minutes", type=float, default=10.0, help="training minutes of `trained` and `today`")
+    ap.add_argument("--preset", default="small", help="the appearance preset (small: 128 px, medium: 256 px)")
+    ap.add_argument("--rows", nargs="+", default=["plate", "warp", "trained", "today", "real"],
+                    choices=("plate", "warp", "trained", "today", "real"))
     ap.add_argument("--dance-seconds", type=float, default=20.0)
     ap.add_argument("--sheets", type=Path, default=REPO / "docs" / "real_footage")
     args = ap.parse_args()
     if args.command == "fetch":
-        print(f"wrote {fetch(args.cache)}")
+        fetch(args.cache)
     else:
         run(args)
 

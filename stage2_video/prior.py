@@ -58,13 +58,15 @@ HYSTERESIS = 0.15
 
 @dataclass(frozen=True)
 class Part:
-    """One rigidly moved body part.
+    """One body part moved as a whole.
 
     Attributes:
         name: what it is.
         lines: joint pairs drawn to decide which pixels belong to it (nearest drawn part wins).
-        bone: the joints whose move carries a limb part (None: torso or head, see :func:`part_transform`).
-        extend: a line past ``bone``'s child joint, in torso lengths along the bone (hand, foot tip), or 0.
+        bone: the joints whose move carries the part (None: the torso, moved by the similarity of its joints).
+        rigid: moved by a similarity about ``bone``'s child joint, turned with the bone and scaled like the torso
+            (head, hands: they keep their shape); else stretched along the bone onto the target bone (limbs).
+        extend: a line past ``bone``'s child joint, in torso lengths along the bone (the hand), or 0.
         reach: how far (torso lengths) from its lines a person pixel may lie and still belong to it.
         group: the retrieval group it is taken from.
     """
@@ -72,28 +74,34 @@ class Part:
     name: str
     lines: tuple[tuple[int, int], ...]
     bone: tuple[int, int] | None
+    rigid: bool
     extend: float
     reach: float
     group: str
 
 
+_R_FOREARM, _L_FOREARM = (J["RElbow"], J["RWrist"]), (J["LElbow"], J["LWrist"])
 # Back to front: the order parts are painted in.
 PARTS: tuple[Part, ...] = (
-    Part("torso", ((J["Neck"], J["MidHip"]),), None, 0.0, 0.25, "core"),
-    Part("right thigh", ((J["RHip"], J["RKnee"]),), (J["RHip"], J["RKnee"]), 0.0, 0.3, "right leg"),
-    Part("left thigh", ((J["LHip"], J["LKnee"]),), (J["LHip"], J["LKnee"]), 0.0, 0.3, "left leg"),
+    Part("torso", ((J["Neck"], J["MidHip"]),), None, False, 0.0, 0.25, "core"),
+    Part("right thigh", ((J["RHip"], J["RKnee"]),), (J["RHip"], J["RKnee"]), False, 0.0, 0.3, "right leg"),
+    Part("left thigh", ((J["LHip"], J["LKnee"]),), (J["LHip"], J["LKnee"]), False, 0.0, 0.3, "left leg"),
     Part("right shin", ((J["RKnee"], J["RAnkle"]), (J["RAnkle"], J["RBigToe"]), (J["RAnkle"], J["RHeel"])),
-         (J["RKnee"], J["RAnkle"]), 0.0, 0.3, "right leg"),
+         (J["RKnee"], J["RAnkle"]), False, 0.0, 0.3, "right leg"),
     Part("left shin", ((J["LKnee"], J["LAnkle"]), (J["LAnkle"], J["LBigToe"]), (J["LAnkle"], J["LHeel"])),
-         (J["LKnee"], J["LAnkle"]), 0.0, 0.3, "left leg"),
+         (J["LKnee"], J["LAnkle"]), False, 0.0, 0.3, "left leg"),
     Part("head", ((J["Neck"], J["Nose"]), (J["Nose"], J["REye"]), (J["Nose"], J["LEye"]), (J["REye"], J["REar"]),
-                  (J["LEye"], J["LEar"])), None, 0.0, 0.5, "core"),
-    Part("right upper arm", ((J["RShoulder"], J["RElbow"]),), (J["RShoulder"], J["RElbow"]), 0.0, 0.25, "right arm"),
-    Part("left upper arm", ((J["LShoulder"], J["LElbow"]),), (J["LShoulder"], J["LElbow"]), 0.0, 0.25, "left arm"),
-    Part("right forearm", ((J["RElbow"], J["RWrist"]),), (J["RElbow"], J["RWrist"]), 0.35, 0.25, "right arm"),
-    Part("left forearm", ((J["LElbow"], J["LWrist"]),), (J["LElbow"], J["LWrist"]), 0.35, 0.25, "left arm"),
+                  (J["LEye"], J["LEar"])), (J["Neck"], J["Nose"]), True, 0.0, 0.5, "core"),
+    Part("right upper arm", ((J["RShoulder"], J["RElbow"]),), (J["RShoulder"], J["RElbow"]), False, 0.0, 0.25,
+         "right arm"),
+    Part("left upper arm", ((J["LShoulder"], J["LElbow"]),), (J["LShoulder"], J["LElbow"]), False, 0.0, 0.25,
+         "left arm"),
+    Part("right forearm", (_R_FOREARM,), _R_FOREARM, False, 0.0, 0.25, "right arm"),
+    Part("left forearm", (_L_FOREARM,), _L_FOREARM, False, 0.0, 0.25, "left arm"),
+    Part("right hand", (), _R_FOREARM, True, 0.35, 0.25, "right arm"),
+    Part("left hand", (), _L_FOREARM, True, 0.35, 0.25, "left arm"),
 )
-TORSO, HEAD = 0, 5
+TORSO = 0
 # The torso quadrilateral (pixels inside it belong to the torso unless a limb is nearer than TORSO_BIAS).
 TORSO_CORNERS = (J["RShoulder"], J["LShoulder"], J["LHip"], J["RHip"])
 TORSO_JOINTS = (J["Neck"], J["RShoulder"], J["LShoulder"], J["MidHip"], J["RHip"], J["LHip"])
@@ -273,20 +281,15 @@ def part_transform(part: Part, src: np.ndarray, dst: np.ndarray, torso_fit: np.n
     joint it needs is absent in either. ``torso_fit``: the torso's similarity (its scale sizes the other parts)."""
     if torso_fit is None:
         return None
-    if part.bone is None and part.name == "torso":
+    if part.bone is None:
         return torso_fit
-    both = (src[:, 2] >= MIN_CONFIDENCE) & (dst[:, 2] >= MIN_CONFIDENCE)
-    scale = float(np.sqrt(abs(np.linalg.det(torso_fit[:, :2]))))
-    if part.bone is None:  # the head: a similarity about the nose, turned with the neck-nose direction
-        nose, neck = J["Nose"], NECK
-        if not (both[nose] and both[neck]):
-            return None
-        up, up2 = src[nose, :2] - src[neck, :2], dst[nose, :2] - dst[neck, :2]
-        return bone_affine(src[nose, :2], src[nose, :2] + up, dst[nose, :2], dst[nose, :2] + _turned(up, up2, scale),
-                           scale)
     a, b = part.bone
-    if not (both[a] and both[b]):
+    if not ((src[[a, b], 2] >= MIN_CONFIDENCE).all() and (dst[[a, b], 2] >= MIN_CONFIDENCE).all()):
         return None
+    scale = float(np.sqrt(abs(np.linalg.det(torso_fit[:, :2]))))
+    if part.rigid:  # a similarity about the child joint, turned with the bone
+        bone, bone2 = src[b, :2] - src[a, :2], dst[b, :2] - dst[a, :2]
+        return bone_affine(src[b, :2], src[b, :2] + bone, dst[b, :2], dst[b, :2] + _turned(bone, bone2, scale), scale)
     return bone_affine(src[a, :2], src[b, :2], dst[a, :2], dst[b, :2], scale)
 
 
