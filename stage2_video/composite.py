@@ -220,11 +220,13 @@ def load_plate(run_dir: str | os.PathLike) -> np.ndarray:
     run_dir = Path(run_dir)
     if (run_dir / PLATE_FILE).is_file():
         return read_plate(run_dir / PLATE_FILE)
-    video = load_meta(run_dir, KIND).get("video")
+    meta = load_meta(run_dir, KIND)
+    video = meta.get("video")
     if not (video and Path(video).is_file() and (run_dir / POSES_FILE).is_file()):
         raise DancesynthError(f"{run_dir} has no background of the target's scene and its target video {video} "
                               "cannot be found to make one; pass --crop to write the model's crop instead.")
-    return cache_plate(Path(video), PoseSequence.load(run_dir / POSES_FILE), run_dir)
+    segment = bool(meta.get("config", {}).get("prior", False))  # as training made it (stage2_video.train)
+    return cache_plate(Path(video), PoseSequence.load(run_dir / POSES_FILE), run_dir, segment)
 
 
 class Compositor:

@@ -310,11 +310,12 @@ def torso_similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
 
 @dataclass
 class Source:
-    """One bank frame ready to be cut into parts: ``[H, W, 3]`` uint8 image (torso holes filled), ``[H, W]``
-    uint8 part labels, the torso's ``[H, W]`` bool region (:func:`fill_torso`) and its ``[25, 3]`` pose in bank
-    pixels."""
+    """One bank frame ready to be cut into parts: its ``[H, W, 3]`` uint8 image, the same with the torso's hidden
+    pixels filled in (:func:`fill_torso`), ``[H, W]`` uint8 part labels, the torso's ``[H, W]`` bool region and its
+    ``[25, 3]`` pose in bank pixels."""
 
     image: np.ndarray
+    torso_image: np.ndarray
     labels: np.ndarray
     torso: np.ndarray
     keypoints: np.ndarray
@@ -356,7 +357,8 @@ def warp_parts(sources: dict[str, Source], target: np.ndarray, size: tuple[int, 
         y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
         layer = np.empty((y1 - y0, x1 - x0, 4), np.float32)
         layer[..., 3] = inside[y0:y1, x0:x1]
-        layer[..., :3] = source.image[y0:y1, x0:x1] * layer[..., 3:]
+        image = source.torso_image if i == TORSO else source.image
+        layer[..., :3] = image[y0:y1, x0:x1] * layer[..., 3:]
         m = m.copy()
         m[:, 2] += m[:, :2] @ (x0, y0)  # the layer's origin is (x0, y0) of the source
         # Only the destination box the layer can reach is warped.
@@ -405,8 +407,9 @@ class FrameBank:
             return self._sources[t]
         kp = self.keypoints[t]
         labels = part_labels(np.asarray(self.masks[t]), kp)
-        image, torso = fill_torso(np.asarray(self.frames[t]), labels, kp)
-        source = Source(image, labels, torso, kp)
+        image = np.asarray(self.frames[t])
+        torso_image, torso = fill_torso(image, labels, kp)
+        source = Source(image, torso_image, labels, torso, kp)
         self._sources[t] = source
         if len(self._sources) > self._cache_size:
             self._sources.popitem(last=False)

@@ -14,8 +14,9 @@ import torch
 torch.set_num_threads(1)
 
 from apps.cli import main  # noqa: E402
-from dancesynth.core.media import probe_streams, probe_video, write_video  # noqa: E402
+from dancesynth.core.media import probe_streams, probe_video, read_frames, write_video  # noqa: E402
 from stage2_video.cache import entry_path  # noqa: E402
+from stage2_video.composite import load_plate  # noqa: E402
 
 REAL_CLIP = Path(__file__).parents[1] / "data" / "real_person" / "sports2d_demo_640x360.mp4"
 SR = 22050
@@ -76,3 +77,18 @@ def test_bad_targets_are_one_sentence_errors(setup, tmp_path, capsys):
         assert err.startswith("dancesynth dance: error:") and "Traceback" not in err and words in err, err
         assert err.count("\n") == 1
         assert not (tmp_path / "x.mp4").exists()
+
+
+def test_zero_minutes_shows_the_persons_own_pixels_at_once(setup, tmp_path, capsys):
+    _, clip, song, _ = setup
+    cache, out = tmp_path / "cache", tmp_path / "zero.mp4"
+    assert _dance(song, clip, cache, out, "0") == 0, capsys.readouterr().err
+    info = probe_video(out)
+    assert (info.width, info.height) == (640, 360) and info.num_frames == 60
+    entry = entry_path(clip, "small", cache)
+    assert _meta(entry)["step"] == 0 and (entry / "masks_256x256.npy").is_file()
+    plate = np.asarray(load_plate(entry), np.int16)
+    frames = [np.asarray(f, np.int16) for f in read_frames(out)]
+    # The person is drawn over the scene in every frame: his own pixels, well away from the plate's.
+    changed = [(np.abs(f - plate).max(axis=2) > 40).sum() for f in frames]
+    assert min(changed) > 300, changed

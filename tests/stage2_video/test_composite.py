@@ -23,6 +23,7 @@ from stage2_video.composite import (
 )
 from stage2_video.framing import Framing, person_framing
 from stage2_video.masks import person_mask
+from stage2_video.synthetic_person import appearance_preset, render_background, render_person
 from stage2_video.train import KIND
 
 REAL = Path(__file__).parents[1] / "data" / "real_person"
@@ -64,6 +65,23 @@ def test_plate_shows_the_scene_without_the_person(real):
     # (compression noise and the sun's flicker), so no smeared copy of him is left.
     assert to_person.mean() > 20
     assert to_scene.mean() < 4 and np.percentile(to_scene, 99) < 16
+
+
+@pytest.mark.parametrize("segment", [False, True])
+def test_the_plate_of_a_person_standing_still_most_of_the_time_holds_no_person(segment, make_poses):
+    look = appearance_preset("red_tee")
+    seq = make_poses(frames=40, width=160, height=120)
+    kp = seq.keypoints.copy()
+    kp[..., 0] -= 6 * np.sin(np.arange(40) / 3)[:, None] + 30  # still, left of centre...
+    kp[36:, :, 0] += 70  # ...for 90 % of the video, then a step to the right
+    seq = seq.replace(kp)
+    plate = background_plate(render_person(seq, look), seq, segment=segment)
+    scene = render_background(seq.width, seq.height, look)
+    spot = person_mask(kp[0], seq.width, seq.height, body_scale(seq), 0.1)
+    error = np.abs(plate.astype(int) - scene).max(axis=2)
+    person = np.abs(next(render_person(seq, look)).astype(int) - scene).max(axis=2)[spot]
+    assert person.mean() > 40  # the person differs from the room where they stand
+    assert error[spot].mean() < 3 and np.percentile(error[spot], 99) < 12  # no trace of them in the plate
 
 
 def test_plate_needs_a_frame_for_every_pose(real):
@@ -135,7 +153,7 @@ def test_training_caches_the_plate(tiny_run, tiny_target):
     assert np.abs(plate.astype(int) - 90).max() <= 6
     path = tiny_run / PLATE_FILE
     before = path.stat().st_mtime_ns
-    cache_plate(video, PoseSequence.load(poses), tiny_run)
+    cache_plate(video, PoseSequence.load(poses), tiny_run, segment=True)  # as the prior preset trains it
     assert path.stat().st_mtime_ns == before
 
 

@@ -5,6 +5,7 @@ import pytest
 import torch
 
 from dancesynth.core import device as device_module
+from dancesynth.core.checkpoint import load_checkpoint, update_meta
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import probe_video
 from dancesynth.core.skeleton import PoseSequence
@@ -12,6 +13,7 @@ from stage2_video.data import prior_images
 from stage2_video.framing import condition
 from stage2_video.prior import PriorRenderer
 from stage2_video.render import OpenVINOGenerator, load_appearance_model, render_frames, render_video
+from stage2_video.train import TrainOptions, train_video
 
 
 def test_render_streams_a_video_with_right_count_and_size(tiny_run, make_poses, tmp_path):
@@ -69,3 +71,33 @@ def test_wrong_kind_checkpoint_is_a_user_error(tiny_run, tmp_path):
         load_appearance_model(other, "cpu")
     with pytest.raises(DancesynthError):
         load_appearance_model(tmp_path / "missing", "cpu")
+
+
+def test_a_model_trained_before_the_warped_prior_still_loads_and_renders(tiny_target, tiny_config, tmp_path):
+    video, poses = tiny_target
+    run = tmp_path / "old"
+    train_video(video, run, "small", TrainOptions(epochs=1, max_steps=1, val_frames=2), poses=poses, device="cpu",
+                overrides={**tiny_config, "background": False, "blend": False, "prior": False})
+    meta = load_checkpoint(run, "stage2")[1]
+    # Its saved config as written before the prior existed: no prior fields at all.
+    update_meta(run, "stage2", {"config": {k: v for k, v in meta["config"].items() if not k.startswith("prior")}})
+    model = load_appearance_model(run, "cpu")
+    assert model.bank is None and model.scale == 1
+    out = render_video(PoseSequence.load(poses).slice_frames(0, 4), model, tmp_path / "old.mp4", normalize=False,
+                       progress=False)
+    info = probe_video(out)
+    assert (info.width, info.height, info.num_frames) == (32, 32, 4)
+
+
+def test_an_untrained_prior_model_renders_the_warp_alone(tiny_target, tiny_config, tmp_path):
+    video, poses = tiny_target
+    run = tmp_path / "zero"
+    meta = train_video(video, run, "small", TrainOptions(minutes=0), poses=poses, device="cpu", overrides=tiny_config)
+    assert meta["step"] == 0 and meta["trained_seconds"] == 0
+    model = load_appearance_model(run, "cpu")
+    assert model.generator is None
+    seq = PoseSequence.load(poses).slice_frames(0, 3)
+    renderer = PriorRenderer(model.bank)
+    for keypoints, frame in zip(seq.keypoints, render_frames(model, seq, normalize=False)):
+        high, _ = prior_images(renderer, keypoints, model.output_framing(model.framing), model.plate, (32, 32))
+        assert np.array_equal(frame, high[..., :3])

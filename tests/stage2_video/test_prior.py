@@ -1,0 +1,160 @@
+"""The warped prior: parts cut by the nearest bone, moved by exact transforms, retrieved by pose."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from dancesynth.core.skeleton import JOINT_INDEX as J
+from stage2_video.masks import person_mask
+from stage2_video.prior import (
+    GROUPS,
+    NO_PART,
+    PARTS,
+    TORSO,
+    FrameBank,
+    Source,
+    bone_affine,
+    fill_torso,
+    part_labels,
+    similarity,
+    warp_parts,
+)
+
+SIZE = 128
+
+
+def standing_pose() -> np.ndarray:
+    """A person facing the camera, arms a little away from the body, in a 128 x 128 image."""
+    xy = {"Nose": (64, 22), "Neck": (64, 34), "RShoulder": (54, 35), "RElbow": (48, 50), "RWrist": (45, 64),
+          "LShoulder": (74, 35), "LElbow": (80, 50), "LWrist": (83, 64), "MidHip": (64, 66), "RHip": (58, 66),
+          "RKnee": (57, 86), "RAnkle": (57, 106), "LHip": (70, 66), "LKnee": (71, 86), "LAnkle": (71, 106),
+          "REye": (62, 20), "LEye": (66, 20), "REar": (60, 21), "LEar": (68, 21), "LBigToe": (74, 110),
+          "LHeel": (70, 109), "RBigToe": (54, 110), "RHeel": (58, 109)}
+    kp = np.zeros((25, 3), np.float32)
+    for name, (x, y) in xy.items():
+        kp[J[name]] = (x, y, 1.0)
+    return kp
+
+
+def textured_person(kp: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(``[H, W, 3]`` uint8 image: a smooth colour gradient, different everywhere; ``[H, W]`` uint8 mask)."""
+    mask = person_mask(kp, SIZE, SIZE, 32.0, 0.0).astype(np.uint8) * 255
+    y, x = np.mgrid[:SIZE, :SIZE]
+    image = np.stack([2 * x, 2 * y, 255 - x - y], axis=2).clip(0, 255).astype(np.uint8)
+    return image, mask
+
+
+def source_of(image: np.ndarray, mask: np.ndarray, kp: np.ndarray) -> Source:
+    labels = part_labels(mask, kp)
+    filled, torso = fill_torso(image, labels, kp)
+    return Source(image, filled, labels, torso, kp)
+
+
+def moved(kp: np.ndarray, m: np.ndarray) -> np.ndarray:
+    out = kp.copy()
+    out[:, :2] = kp[:, :2] @ m[:, :2].T + m[:, 2]
+    return out
+
+
+def test_similarity_and_bone_affine_are_exact():
+    angle, scale = np.deg2rad(25), 1.2
+    m = np.array([[scale * np.cos(angle), -scale * np.sin(angle), 7.0], [scale * np.sin(angle), scale * np.cos(angle),
+                                                                         -3.0]])
+    points = np.random.default_rng(0).uniform(0, 100, (6, 2))
+    assert np.allclose(similarity(points, points @ m[:, :2].T + m[:, 2]), m)
+    a, b, a2, b2 = np.array([10.0, 10]), np.array([10.0, 30]), np.array([50.0, 50]), np.array([80.0, 50])
+    affine = bone_affine(a, b, a2, b2, across=0.8)
+    assert np.allclose(affine @ [*a, 1], a2) and np.allclose(affine @ [*b, 1], b2)
+    # Across the bone the torso's scale: a point 5 px beside the source bone lands 4 px beside the target bone.
+    assert np.allclose(affine @ [15.0, 10, 1], a2 - [0, 4])
+    # A foreshortened source limb is not stretched past MAX_STRETCH times the torso's scale.
+    assert np.allclose(bone_affine(a, b, a2, a2 + [200.0, 0], across=0.8) @ [*b, 1], a2 + [20 * 0.8 * 2.5, 0])
+
+
+def test_a_body_moved_by_a_known_transform_lands_exactly_where_it_should():
+    kp = standing_pose()
+    image, mask = textured_person(kp)
+    angle = np.deg2rad(12)
+    m = np.array([[1.1 * np.cos(angle), -1.1 * np.sin(angle), 4.0], [1.1 * np.sin(angle), 1.1 * np.cos(angle), -6.0]])
+    source = source_of(image, mask, kp)
+    colour, alpha = warp_parts({g: source for g in GROUPS}, moved(kp, m), (SIZE, SIZE))
+    expected_alpha = cv2.warpAffine(mask, m, (SIZE, SIZE), flags=cv2.INTER_LINEAR) / 255.0
+    expected = cv2.warpAffine(image, m, (SIZE, SIZE), flags=cv2.INTER_LINEAR).astype(np.float32)
+    inside = cv2.erode((expected_alpha > 0.99).astype(np.uint8), np.ones((5, 5), np.uint8)) > 0
+    assert inside.sum() > 500
+    assert np.abs(alpha[inside] - 1).max() < 1e-3
+    assert np.abs(colour[inside] - expected[inside]).max() <= 3  # every part moved by the same similarity
+    outside = cv2.dilate((expected_alpha > 0).astype(np.uint8), np.ones((7, 7), np.uint8)) == 0
+    assert alpha[outside].max() == 0
+
+
+def test_a_forearm_turned_about_its_elbow_carries_its_hand_to_the_new_wrist():
+    kp = standing_pose()
+    image, mask = textured_person(kp)
+    image[:] = (40, 40, 40)
+    wrist = kp[J["RWrist"], :2]
+    cv2.circle(image, tuple(int(v) for v in wrist), 2, (255, 0, 0), -1)  # a red marker on the right wrist
+    target = kp.copy()
+    elbow = kp[J["RElbow"], :2]
+    target[J["RWrist"], :2] = elbow + (-(wrist - elbow)[1], (wrist - elbow)[0])  # the forearm turned 90 degrees
+    colour, alpha = warp_parts({g: source_of(image, mask, kp) for g in GROUPS}, target, (SIZE, SIZE))
+    red = (colour[..., 0] > 200) & (colour[..., 1] < 60)
+    ys, xs = np.nonzero(red)
+    assert len(xs) and np.hypot(xs.mean() - target[J["RWrist"], 0], ys.mean() - target[J["RWrist"], 1]) < 1.5
+    assert not red[int(wrist[1]), int(wrist[0])]  # nothing of the hand stays behind
+
+
+def test_a_hand_on_the_hip_belongs_to_its_arm_and_the_torso_behind_an_arm_is_filled():
+    kp = standing_pose()
+    kp[J["RElbow"], :2] = (46, 50)
+    kp[J["RWrist"], :2] = (58, 60)  # the right hand rests on the body, inside the torso
+    image, mask = textured_person(kp)
+    labels = part_labels(mask, kp)
+    hand = PARTS.index(next(p for p in PARTS if p.name == "right hand"))
+    tip = kp[J["RWrist"], :2] + 0.3 * (kp[J["RWrist"], :2] - kp[J["RElbow"], :2])
+    assert labels[int(tip[1]), int(tip[0])] == hand
+    assert labels[0, 0] == NO_PART and labels[int(kp[J["Neck"], 1]) + 8, 64] == TORSO
+    image[labels != TORSO] = (255, 0, 0)  # limbs red, torso the gradient
+    filled, region = fill_torso(image, labels, kp)
+    covered = region & (labels != TORSO)
+    assert covered.sum() > 20  # where the forearm lay across the torso
+    assert not (filled[covered] == (255, 0, 0)).all(axis=1).any()  # filled from the torso, not the arm
+
+
+def _bank(poses: np.ndarray) -> FrameBank:
+    frames = np.zeros((len(poses), 8, 8, 3), np.uint8)
+    return FrameBank(frames, np.zeros((len(poses), 8, 8), np.uint8), poses, np.arange(len(poses)))
+
+
+def test_retrieval_ignores_position_and_scale_and_never_returns_excluded_frames():
+    rng = np.random.default_rng(1)
+    base = standing_pose()
+    poses = np.repeat(base[None], 60, axis=0)
+    poses[:, :, :2] += rng.normal(0, 4, (60, 25, 2))
+    bank = _bank(poses)
+    # The same pose somewhere else, larger: the same frame for every group.
+    query = poses[17].copy()
+    query[:, :2] = query[:, :2] * 1.7 + (30, -12)
+    assert set(bank.retrieve(query).values()) == {17}
+    previous = None
+    for t in range(60):
+        window = (t - 5, t + 6)
+        choice = bank.retrieve(poses[t], window, previous)
+        assert all(not window[0] <= f < window[1] for f in choice.values()), (t, choice)
+        previous = choice
+    # A bank shorter than the window keeps its farthest frames rather than failing.
+    assert set(bank.retrieve(poses[30], (-100, 100)).values()) <= {0, 59}
+
+
+@pytest.mark.parametrize("facing_away", [False, True])
+def test_retrieval_keeps_left_and_right(facing_away):
+    front = standing_pose()
+    back = front.copy()
+    for right, left in (("RShoulder", "LShoulder"), ("RElbow", "LElbow"), ("RWrist", "LWrist"), ("RHip", "LHip"),
+                        ("RKnee", "LKnee"), ("RAnkle", "LAnkle")):
+        back[J[right]], back[J[left]] = front[J[left]].copy(), front[J[right]].copy()
+    back[[J["REye"], J["LEye"], J["Nose"]], 2] = 0.0  # seen from behind: no face
+    bank = _bank(np.stack([front, back]))
+    assert set(bank.retrieve(back if facing_away else front).values()) == {int(facing_away)}
