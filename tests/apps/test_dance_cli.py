@@ -87,7 +87,8 @@ def test_crop_keeps_the_model_resolution_and_height_scales_the_scene(models, tmp
     song = _song(tmp_path / "song.wav", seconds=2.0)
     common = ["--pose-model", str(pose_run), "--video-model", str(video_run), "--device", "cpu"]
     assert main(["dance", str(song), *common, "--out", str(tmp_path / "crop.mp4"), "--crop"]) == 0
-    assert (probe_video(tmp_path / "crop.mp4").width, probe_video(tmp_path / "crop.mp4").height) == (32, 32)
+    # The model's crop at the warped prior's scale (twice the 32-px network's resolution).
+    assert (probe_video(tmp_path / "crop.mp4").width, probe_video(tmp_path / "crop.mp4").height) == (64, 64)
     assert main(["dance", str(song), *common, "--out", str(tmp_path / "h.mp4"), "--height", "128"]) == 0
     target, scaled = probe_video(video_run.parent / "target.mp4"), probe_video(tmp_path / "h.mp4")
     assert scaled.height == 128 and abs(scaled.width / scaled.height - target.width / target.height) < 0.02

