@@ -37,7 +37,8 @@ def dance(song: PathLike, *, out: PathLike, target: PathLike | None = None, vide
         song: any audio FFmpeg reads (wav, mp3, ogg, m4a, flac, or a video's soundtrack).
         target: a video of the person; their appearance model is taken from ``cache`` (default
             ``~/.cache/dancesynth/appearance``) or trained now until it has trained ``train_minutes`` in all
-            (default 30; a later call with more minutes continues it), at ``preset`` (default ``auto``,
+            (default 30; a later call with more minutes continues it; 0 renders the person's own pixels warped
+            onto the dance, untrained), at ``preset`` (default ``auto``,
             ``small`` = 128 px or ``medium`` = 256 px). ``cache``, ``train_minutes`` and ``preset`` go with
             ``target`` only.
         video_model: instead of ``target``, a stage-2 run folder (:func:`train_video`).

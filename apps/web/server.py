@@ -383,7 +383,7 @@ class WebApp:
             if not body.get("video"):
                 raise DancesynthError("Choose the person: a trained appearance model or an uploaded video.")
             video = self.upload(body["video"], "video")
-            minutes = _number(body, "minutes", 30.0, 0.05, 24 * 60, "training budget (minutes)")
+            minutes = _number(body, "minutes", 30.0, 0.0, 24 * 60, "training budget (minutes)")
             preset = self._preset(body.get("preset", "auto"))
             params.update(target=video["path"], minutes=minutes, preset=preset)
             who = ["--target", video["path"], "--train-minutes", f"{minutes:g}", "--preset", preset,
