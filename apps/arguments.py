@@ -14,6 +14,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NoReturn
 
+from dancesynth.core.fileio import special_file
+
 # Counts go to C ints in torch and numpy; nothing a user means is larger.
 MAX_INT = 2**31 - 1
 
@@ -91,10 +93,15 @@ def _writable_folder(folder: Path, text: str) -> None:
 
 
 def output_file(text: str) -> str:
-    """A file to write: not a folder, in an existing folder that may be written to."""
+    """A file to write: not a folder, a device, a named pipe or a socket, in an existing folder that may be written
+    to. (That it is none of the command's inputs, nor another output, is checked by
+    :func:`dancesynth.core.fileio.check_outputs` once all arguments are known.)"""
     path = Path(text)
     if path.is_dir():
         raise argparse.ArgumentTypeError(f"{text} is a folder; give the path of the file to write instead")
+    kind = special_file(path)
+    if kind is not None:
+        raise argparse.ArgumentTypeError(f"{text} is {kind}; give the path of a file to write instead")
     folder = path.parent
     if not folder.is_dir():
         raise argparse.ArgumentTypeError(f"cannot write {text}: the folder {folder} does not exist; create it first")

@@ -22,6 +22,7 @@ import numpy as np
 from dancesynth.core.concurrency import read_ahead
 from dancesynth.core.device import resolve_device, resolve_precision
 from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import check_outputs
 from dancesynth.core.media import SONG_SAMPLE_RATE, VideoWriter, load_song
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence, resample
@@ -154,6 +155,8 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
         raise DancesynthError("--height sizes the whole-scene output and --crop writes the model's crop; "
                               "use one of them.")
     # Everything fast to check comes before a training that may take minutes.
+    check_outputs({"dance video": out, "skeleton preview": skeleton_preview, "side-by-side video": side_by_side},
+                  {"song": song, "target video": target, "appearance model": video_model, "pose model": pose_model})
     segment = song_segment(load_song(song, SONG_SAMPLE_RATE), SONG_SAMPLE_RATE, start, duration)
     pose_model_loaded = load_pose_model(find_pose_run(pose_model, method), device)
     if target is not None:

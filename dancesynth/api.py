@@ -86,12 +86,13 @@ def generate(song: PathLike, *, model: PathLike | None = None, out: PathLike | N
         device: ``auto``, ``cpu`` or ``cuda``.
     """
     from dancesynth.core.draw import write_skeleton_video
-    from dancesynth.core.fileio import atomic_path
+    from dancesynth.core.fileio import atomic_path, check_outputs
     from dancesynth.core.media import SONG_SAMPLE_RATE, load_song
     from stage1_pose.beat_snap import DEFAULT_SNAP
     from stage1_pose.generate import generate_dance, load_pose_model
     from stage1_pose.pretrained import DEFAULT_POSE_MODEL
 
+    check_outputs({"pose file": out, "preview": preview}, {"song": song, "pose model": model})
     loaded = load_pose_model(DEFAULT_POSE_MODEL if model is None else model, device, precision)
     samples = load_song(song, SONG_SAMPLE_RATE)
     poses = generate_dance(loaded, samples, SONG_SAMPLE_RATE, seed=seed, snap=DEFAULT_SNAP if beat_snap else None)
@@ -121,10 +122,13 @@ def render(poses: PoseSequence | PathLike, *, model: PathLike, out: PathLike, au
     Returns:
         the written video's path; frames at the poses' fps and the model's resolution.
     """
+    from dancesynth.core.fileio import check_outputs
     from dancesynth.core.media import AAC_RATE, decode_audio
     from dancesynth.core.skeleton import PoseSequence
     from stage2_video.render import load_appearance_model, render_video
 
+    check_outputs({"video": out}, {"pose file": None if isinstance(poses, PoseSequence) else poses,
+                                   "appearance model": model, "audio": audio})
     if not isinstance(poses, PoseSequence):
         poses = PoseSequence.load(poses)
     appearance = load_appearance_model(model, device, optimize=optimize, precision=precision)
@@ -153,6 +157,7 @@ def extract_poses(video: PathLike, *, out: PathLike | None = None, preview: Path
         the poses, which frames had the person (``.found``) and what the tracker did (``.stats``).
     """
     from dancesynth.core.errors import DancesynthError
+    from dancesynth.core.fileio import check_outputs
     from stage2_video.extract import ExtractConfig, write_preview
     from stage2_video.extract import extract_poses as extract
     from stage2_video.smoothing import SmoothingConfig
@@ -164,6 +169,7 @@ def extract_poses(video: PathLike, *, out: PathLike | None = None, preview: Path
             raise DancesynthError(f"{path} must end in {suffix}; choose another file name.")
         if not Path(path).parent.is_dir():
             raise DancesynthError(f"The folder {Path(path).parent} does not exist; create it or choose another path.")
+    check_outputs({"pose file": out, "preview": preview}, {"video": video})
     smoothing_settings = _given(window_s=window_s, min_cutoff_hz=min_cutoff_hz, beta=beta)
     settings = _given(min_visibility=min_visibility, max_missing_fraction=max_missing)
     config = ExtractConfig(smoothing=SmoothingConfig(smoothing, **smoothing_settings), **settings)

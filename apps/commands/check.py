@@ -46,9 +46,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> None:
-    from dancesynth.core.fileio import atomic_path
+    from dancesynth.core.fileio import atomic_path, check_outputs
     from stage1_pose.check import CheckOptions, check_run, report_text
 
+    check_outputs({"JSON report": args.json}, {"pose model": args.run, "dataset": args.data})
     given = {k: getattr(args, k) for k in ("clips", "seconds", "device", "precision") if getattr(args, k) is not None}
     if args.seeds is not None:
         given["seeds"] = tuple(args.seeds)

@@ -79,11 +79,12 @@ def preview_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
     import cv2
 
     from dancesynth.core.draw import draw_pose
-    from dancesynth.core.fileio import atomic_path
+    from dancesynth.core.fileio import atomic_path, check_outputs
     from dancesynth.core.media import probe_video, read_frames
     from stage2_video.extract import extract_frames, write_preview
 
     video = Path(params["target"])
+    check_outputs({"preview video": out / "preview.mp4", "preview image": out / "preview.png"}, {"video": video})
     info = probe_video(video)
     count = max(1, int(PREVIEW_SECONDS * info.fps))
     frames = list(itertools.islice(read_frames(video), count))

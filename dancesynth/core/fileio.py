@@ -1,5 +1,5 @@
-"""Input files checked before use; atomic output files: written under a unique temporary name, renamed into
-place only when complete."""
+"""Input files checked before use; outputs checked against the inputs and each other before any work; atomic
+output files: written under a unique temporary name, renamed into place only when complete."""
 
 from __future__ import annotations
 
@@ -8,12 +8,16 @@ import errno
 import os
 import secrets
 import shutil
-from collections.abc import Iterator
+import stat
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 
 from dancesynth.core.errors import DancesynthError
 
 PART_MARKER = ".part"
+# Folders of devices and processes: a rename there replaces a device or a stream (/dev/stdout), not a file.
+# /dev itself only: its subfolders hold devices (which are refused as such) or files (/dev/shm).
+DEVICE_FOLDER, SYSTEM_FOLDERS = Path("/dev"), (Path("/proc"), Path("/sys"))
 
 
 def temporary_sibling(path: str | os.PathLike) -> Path:
@@ -33,6 +37,71 @@ def require_file(path: str | os.PathLike, what: str = "") -> Path:
     if not path.is_file():
         raise DancesynthError(f"{what + ' ' if what else ''}{path} does not exist; check the path.")
     return path
+
+
+def special_file(path: str | os.PathLike) -> str | None:
+    """Why writing a file at ``path`` would replace something that is not a file, as the end of the sentence
+    "``path`` is ...": an existing device, named pipe or socket (links followed), or any name in ``/dev`` (not
+    its subfolders), ``/proc`` or ``/sys``; None for a regular file, a folder or a new name elsewhere."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        mode = 0
+    for test, kind in ((stat.S_ISCHR, "a device"), (stat.S_ISBLK, "a device"), (stat.S_ISFIFO, "a named pipe"),
+                       (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return f"{kind}, not a regular file"
+    folder = _entry(path).parent
+    system = next((f for f in SYSTEM_FOLDERS if folder.is_relative_to(f)), DEVICE_FOLDER if folder == DEVICE_FOLDER
+                  else None)
+    return f"in {system}, a folder of the system's devices and processes" if system is not None else None
+
+
+def _entry(path: str | os.PathLike) -> Path:
+    """The folder entry a rename onto ``path`` replaces: its folder with links resolved, and its own name."""
+    path = Path(os.path.abspath(path))
+    return Path(os.path.realpath(path.parent)) / path.name
+
+
+def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
+    """Whether ``a`` and ``b`` name one file: the same name once links are resolved, or (both existing) the same
+    file through another link or a hard link."""
+    if os.path.realpath(a) == os.path.realpath(b):
+        return True
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return False
+
+
+def check_outputs(outputs: Mapping[str, str | os.PathLike | None],
+                  inputs: Mapping[str, str | os.PathLike | None] | None = None) -> None:
+    """Refuse, before any work, outputs that would destroy what the command reads, each other or a device.
+
+    ``outputs`` and ``inputs`` map what each path is (e.g. ``"dance video"``, ``"song"``) to the path (None: not
+    given). A :class:`DancesynthError` names the output when it is an input file or folder, an existing file
+    inside an input folder, another output, or not a place for a file (:func:`special_file`).
+    """
+    given = {what: path for what, path in outputs.items() if path is not None}
+    sources = {what: path for what, path in (inputs or {}).items() if path is not None}
+    for index, (what, path) in enumerate(given.items()):
+        kind = special_file(path)
+        if kind is not None:
+            raise DancesynthError(f"The {what} {path} is {kind}; give the path of a file to write instead.")
+        for source_what, source in sources.items():
+            if _same_file(path, source):
+                relation = "the"
+            elif (os.path.isdir(source) and os.path.lexists(path)
+                  and _entry(path).is_relative_to(os.path.realpath(source))):
+                relation = "a file of the"
+            else:
+                continue
+            raise DancesynthError(f"The {what} {path} is {relation} {source_what} {source}; choose another output "
+                                  f"path so that the {source_what} is not overwritten.")
+        for other_what, other in list(given.items())[:index]:
+            if _same_file(path, other):
+                raise DancesynthError(f"The {what} {path} is also the {other_what} {other}; give each output its "
+                                      "own path.")
 
 
 def os_error_sentence(error: OSError, path: str | os.PathLike | None = None) -> str:
@@ -99,7 +168,7 @@ def _replace_folder(tmp: Path, path: Path) -> None:
 def atomic_path(path: str | os.PathLike, folder: bool = False) -> Iterator[Path]:
     """Yield a fresh temporary path beside ``path`` (see :func:`temporary_sibling`); on success rename it to
     ``path``, on any error or interruption delete it. The output gets the permissions a plain ``open()`` (or
-    ``mkdir``) would give it.
+    ``mkdir``) would give it. A device, named pipe or socket at ``path`` is refused, not replaced.
 
     With ``folder`` the caller creates a folder at the temporary path; it replaces an existing folder ``path``.
     Otherwise ``path`` must not be a folder. Two concurrent writers each finish with a complete output; the last
@@ -112,6 +181,9 @@ def atomic_path(path: str | os.PathLike, folder: bool = False) -> Iterator[Path]
                               "create it or choose another output path.")
     if path.is_dir() and not folder:
         raise DancesynthError(f"{path} is a folder; give a file name for the output instead.")
+    kind = special_file(path)
+    if kind is not None:
+        raise DancesynthError(f"{path} is {kind}; give the path of a file to write instead.")
     tmp = temporary_sibling(path)
     try:
         yield tmp

@@ -289,11 +289,45 @@ UNWRITABLE = [  # {ro}: a read-only file system (or a folder this user may not w
       "--preview-every", "0", "--device", "cpu", "--set", "hidden=8", "--set", "window_frames=30"],
      "free some disk space"),
 ]
+FAKE_DANCE = ["dance", "{in}/song.wav", "--pose-model", "{stage1}", "--video-model", "{stage2}"]
+OVERWRITES = [  # an output that is an input, another output or not a file; {in}/song_link.wav links to song.wav
+    (FAKE_DANCE + ["--out", "{in}/song.wav"],
+     "The dance video {in}/song.wav is the song {in}/song.wav; choose another output path so that the song is not "
+     "overwritten."),
+    (FAKE_DANCE + ["--out", "{in}/folder/../song.wav"], "is the song {in}/song.wav"),
+    (FAKE_DANCE + ["--out", "{in}/song_link.wav"], "The dance video {in}/song_link.wav is the song"),
+    (["dance", "{in}/song.wav", "--target", "{in}/video.mp4", "--cache", "{out}/cache", "--out", "{in}/video.mp4"],
+     "The dance video {in}/video.mp4 is the target video"),
+    (FAKE_DANCE + ["--out", "{stage2}/latest.json"], "is a file of the appearance model {stage2}"),
+    (FAKE_DANCE + ["--out", "{stage1}/latest.json"], "is a file of the pose model {stage1}"),
+    (FAKE_DANCE + ["--out", "{out}/d.mp4", "--skeleton-preview", "{out}/d.mp4"],
+     "The skeleton preview {out}/d.mp4 is also the dance video {out}/d.mp4; give each output its own path."),
+    (FAKE_DANCE + ["--out", "{out}/d.mp4", "--side-by-side", "{out}/../out/d.mp4"], "is also the dance video"),
+    (FAKE_DANCE + ["--out", "{out}/d.mp4", "--skeleton-preview", "{out}/s.mp4", "--side-by-side", "{out}/s.mp4"],
+     "The side-by-side video {out}/s.mp4 is also the skeleton preview"),
+    (FAKE_DANCE + ["--out", "{in}/fifo"], "{in}/fifo is a named pipe, not a regular file"),
+    (FAKE_DANCE + ["--out", "{out}/d.mp4", "--side-by-side", "{in}/fifo"], "is a named pipe"),
+    (["render", "{in}/poses.npz", "--model", "{stage2}", "--out", "{in}/poses.npz"],
+     "The video {in}/poses.npz is the pose file"),
+    (["render", "{in}/poses.npz", "--model", "{stage2}", "--audio", "{in}/song.wav", "--out", "{in}/song_link.wav"],
+     "is the audio {in}/song.wav"),
+    (["render", "{in}/poses.npz", "--model", "{stage2}", "--out", "{stage2}/latest.json"],
+     "is a file of the appearance model"),
+    (["generate", "{in}/song.wav", "--model", "{stage1}", "--out", "{in}/song.wav"], "The pose file {in}/song.wav is "
+     "the song"),
+    (["generate", "{in}/song.wav", "--model", "{stage1}", "--out", "{out}/p.npz", "--preview", "{out}/./p.npz"],
+     "The preview {out}/./p.npz is also the pose file {out}/p.npz"),
+    (["generate", "{in}/song.wav", "--model", "{stage1}", "--out", "{in}/fifo"], "is a named pipe"),
+    (["extract-poses", "{in}/video.mp4", "--out", "{out}/p.npz", "--preview", "{in}/video.mp4"],
+     "The preview {in}/video.mp4 is the video {in}/video.mp4"),
+    (["extract-poses", "{in}/video.mp4", "--out", "{out}/p.npz", "--preview", "{in}/fifo"], "is a named pipe"),
+    (["check", "{stage1}", "--json", "{stage1}/latest.json"], "is a file of the pose model"),
+]
 CATALOGUE = {"out_of_range": OUT_OF_RANGE, "folder_for_file": FOLDER_FOR_FILE, "file_for_folder": FILE_FOR_FOLDER,
              "missing_or_unreadable": MISSING_OR_UNREADABLE, "bad_dataset": BAD_DATASETS,
              "wrong_run": WRONG_RUNS + MORE_WRONG_RUNS, "bad_audio": BAD_AUDIO, "song_segment": SONG_SEGMENT,
              "bad_pose_file": BAD_POSE_FILES, "training_state": TRAINING_STATE, "edited_latest_json": EDITED_META,
-             "unwritable_output": UNWRITABLE}
+             "unwritable_output": UNWRITABLE, "output_overwrites": OVERWRITES}
 CASES = [(name, argv, says) for name, cases in CATALOGUE.items() for argv, says in cases]
 
 
@@ -352,6 +386,8 @@ def inputs(tmp_path_factory, tiny_stage1_dataset) -> dict[str, str]:
     (folder / "garbage.npz").write_bytes(np.random.default_rng(0).bytes(4096))
     (folder / "truncated.npz").write_bytes((tiny_stage1_dataset / "poses" / "clip0.npz").read_bytes()[:300])
     (folder / "a_file.txt").write_text("not a folder")
+    os.mkfifo(folder / "fifo")
+    (folder / "song_link.wav").symlink_to(folder / "song.wav")
     (folder / "video.mp4").write_bytes(b"never decoded: the arguments are refused first")
     np.save(folder / "gPO_x.npy", np.ones((90, 17, 3), np.float32))
     shutil.copy(next((tiny_stage1_dataset / "poses").glob("*.npz")), folder / "poses.npz")
@@ -542,6 +578,16 @@ def test_bad_input_is_one_line_exit_1_and_writes_nothing(request, inputs, tmp_pa
     assert code == 1 and says.format(**paths) in line, line
     assert _files(inputs["root"], inputs["data"], paths["out"]) == before
     assert not Path("pwned").exists()
+
+
+@pytest.mark.parametrize("device", ["/dev/null", "/dev/full", "/dev/stdout"])
+def test_a_device_as_output_is_refused_and_stays_a_device(inputs, capsys, device):
+    before = os.stat(device).st_mode
+    # The pose model is a fake run: were the output not refused, loading it would fail before anything is written.
+    assert main(["generate", f"{inputs['in']}/song.wav", "--model", inputs["stage1"], "--out", device]) == 1
+    line = _error_line(capsys.readouterr().err, "generate")
+    assert f"{device} is " in line and "give the path of a file to write instead" in line, line
+    assert os.stat(device).st_mode == before and os.path.exists(device)
 
 
 def test_an_os_error_escaping_a_command_is_one_sentence(monkeypatch, tmp_path, capsys):

@@ -1,14 +1,26 @@
+import argparse
 import errno
 import multiprocessing
 import os
 import re
+import socket
+import stat
 import threading
 
 import numpy as np
 import pytest
 
+from apps.arguments import output_file
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.fileio import PART_MARKER, atomic_path, os_error_sentence, require_file, temporary_sibling
+from dancesynth.core.fileio import (
+    PART_MARKER,
+    atomic_path,
+    check_outputs,
+    os_error_sentence,
+    require_file,
+    special_file,
+    temporary_sibling,
+)
 from dancesynth.core.skeleton import PoseSequence
 
 
@@ -150,3 +162,74 @@ def test_outputs_get_the_mode_a_plain_open_would_give(tmp_path):
     assert (tmp_path / "run").stat().st_mode & 0o777 == _plain_mode(folder=True)
     assert (tmp_path / "run" / "inner").stat().st_mode & 0o777 == _plain_mode(folder=True)
     assert (tmp_path / "run" / "inner" / "weights").stat().st_mode & 0o777 == _plain_mode()
+
+
+def test_an_output_naming_an_input_by_any_name_is_refused(tmp_path, monkeypatch):
+    song = tmp_path / "song.wav"
+    song.write_bytes(b"RIFF")
+    (tmp_path / "link.wav").symlink_to(song)
+    os.link(song, tmp_path / "hard.wav")
+    (tmp_path / "sub").mkdir()
+    monkeypatch.chdir(tmp_path)
+    for out in (song, "song.wav", "./sub/../song.wav", tmp_path / "link.wav", tmp_path / "hard.wav"):
+        with pytest.raises(DancesynthError, match=re.escape(
+                f"The dance video {out} is the song {song}; choose another output path so that the song is not "
+                "overwritten.")):
+            check_outputs({"dance video": out}, {"song": song, "pose model": None})
+    check_outputs({"dance video": tmp_path / "dance.mp4", "preview": None}, {"song": song})
+
+
+def test_an_existing_file_of_an_input_folder_is_refused_as_output_but_a_new_one_is_not(tmp_path):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "latest.json").write_text("{}")
+    with pytest.raises(DancesynthError, match="is a file of the appearance model"):
+        check_outputs({"video": run / "latest.json"}, {"appearance model": run})
+    with pytest.raises(DancesynthError, match="is the appearance model"):
+        check_outputs({"video": tmp_path / "." / "run"}, {"appearance model": run})
+    check_outputs({"video": run / "replay.mp4"}, {"appearance model": run})
+
+
+def test_two_outputs_naming_one_file_are_refused(tmp_path):
+    a, b = tmp_path / "a.mp4", tmp_path / "b.mp4"
+    with pytest.raises(DancesynthError, match=re.escape(
+            f"The side-by-side video {tmp_path}/./a.mp4 is also the dance video {a}; give each output its own path.")):
+        check_outputs({"dance video": a, "skeleton preview": b, "side-by-side video": f"{tmp_path}/./a.mp4"})
+    b.write_bytes(b"old")
+    (tmp_path / "b_link.mp4").symlink_to(b)
+    with pytest.raises(DancesynthError, match="is also the skeleton preview"):
+        check_outputs({"dance video": a, "skeleton preview": b, "side-by-side video": tmp_path / "b_link.mp4"})
+    check_outputs({"dance video": a, "skeleton preview": b, "side-by-side video": None})
+
+
+def _kinds(tmp_path):
+    """A named pipe and a socket in ``tmp_path`` (the socket kept open by the caller)."""
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    server = socket.socket(socket.AF_UNIX)
+    server.bind(str(tmp_path / "sock"))
+    return fifo, server
+
+
+def test_a_pipe_socket_or_device_is_refused_as_output_and_kept(tmp_path):
+    fifo, server = _kinds(tmp_path)
+    (tmp_path / "null_link").symlink_to("/dev/null")
+    with server:
+        for path, kind in ((fifo, "a named pipe"), (tmp_path / "sock", "a socket"), ("/dev/null", "a device"),
+                           (tmp_path / "null_link", "a device"), ("/dev/full", "a device"),
+                           ("/dev/new.mp4", "in /dev, a folder of the system's devices and processes"),
+                           ("/proc/new.mp4", "in /proc")):
+            assert special_file(path).startswith(kind)
+            with pytest.raises(DancesynthError, match=re.escape(f"The video {path} is {kind}")):
+                check_outputs({"video": path})
+            # Were it not refused, the failing body would leave the path as it is: this test replaces nothing.
+            with pytest.raises(DancesynthError, match=re.escape(f"{path} is {kind}")):
+                with atomic_path(path):
+                    pytest.fail("the body must not run")
+            with pytest.raises(argparse.ArgumentTypeError, match=re.escape(f"{path} is {kind}")):
+                output_file(str(path))
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode) and stat.S_ISSOCK(os.lstat(tmp_path / "sock").st_mode)
+    assert stat.S_ISCHR(os.stat("/dev/null").st_mode) and stat.S_ISCHR(os.stat("/dev/full").st_mode)
+    assert not os.path.lexists("/dev/new.mp4")
+    for path in (tmp_path / "new.mp4", tmp_path, "/dev/shm/new.mp4"):
+        assert special_file(path) is None
