@@ -22,7 +22,9 @@ Start a local web app (open the address it prints in a browser) with three tabs:
 Jobs run one at a time in a worker process (the others wait in a queue) and are kept with their outputs in
 --data, so a reload or a restart shows them; a job can be cancelled. The page loads nothing from the internet and
 sends nothing anywhere; it listens on 127.0.0.1 only unless --host says otherwise (it has no login: do not expose
-it to a network you do not trust).
+it to a network you do not trust). It answers requests addressed to --host (or the address a request arrives at;
+also localhost on the loopback) and its port only, and changes made from its own page only, so other web sites
+cannot use it from your browser.
 
 examples:
   dancesynth serve

@@ -17,6 +17,12 @@ running job uses them or a cached model names them as its video (continuing its 
 
 Bad input answers ``{"error": sentence}`` with status 400 (413 for an upload over the size limit), the
 :class:`~dancesynth.core.errors.DancesynthError` sentence the CLI would print.
+
+The server answers its own page only: a request whose ``Host`` is not the address it listens on (``localhost``,
+``127.0.0.1`` and ``[::1]`` too when that is the loopback) with its port gets 403, which stops DNS rebinding; a
+request that changes something (any method but GET, HEAD and OPTIONS) must name the page as its ``Origin`` (or,
+without one, its ``Referer``), else 403, which stops other sites' forms and scripts; a job request must be
+``application/json``, else 415 (a cross-site form cannot send that type).
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ import contextlib
 import csv
 import dataclasses
 import functools
+import ipaddress
 import json
 import logging
 import re
@@ -35,6 +42,7 @@ import time
 import uuid
 from pathlib import Path
 from typing import TYPE_CHECKING
+from urllib.parse import urlsplit
 
 from fastapi import APIRouter, FastAPI, Form, Request, UploadFile
 from fastapi.responses import FileResponse, JSONResponse
@@ -63,10 +71,87 @@ CHUNK = 1 << 20
 # The JSON API's routes sit under this prefix; uploads are refused by size before their body is read.
 API = "/api"
 UPLOADS_ROUTE = "/uploads"
+LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
+# Requests of these methods only read; every other method needs the page's own Origin.
+SAFE_METHODS = ("GET", "HEAD", "OPTIONS")
+DEFAULT_PORTS = {"http": 80, "https": 443}
 
 
 class UploadTooLarge(DancesynthError):
     """An upload over the server's size limit (HTTP 413 rather than 400)."""
+
+    status = 413
+
+
+class NotJson(DancesynthError):
+    """A request body that should be JSON sent as another media type (HTTP 415 rather than 400)."""
+
+    status = 415
+
+
+def _address(text: str) -> str:
+    """An address or host name as compared: lower case, without IPv6 brackets, IPv4-mapped IPv6 as IPv4."""
+    text = text.strip("[]").lower()
+    with contextlib.suppress(ValueError):
+        ip = ipaddress.ip_address(text)
+        return str(getattr(ip, "ipv4_mapped", None) or ip)
+    return text
+
+
+def _is_loopback(address: str) -> bool:
+    with contextlib.suppress(ValueError):
+        return ipaddress.ip_address(address).is_loopback
+    return address == "localhost"
+
+
+def _url_address(scheme: str, netloc: str) -> tuple[str, int] | None:
+    """(host, port) of ``netloc`` (``host[:port]``; the scheme's port when none is given), None when it is
+    anything else (a user name, a path)."""
+    try:
+        parts = urlsplit(f"{scheme}://{netloc}")
+        port = parts.port or DEFAULT_PORTS.get(scheme)
+    except ValueError:
+        return None
+    if "@" in netloc or parts.netloc != netloc or not parts.hostname or not port:
+        return None
+    return _address(parts.hostname), port
+
+
+def _page_address(url: str, scheme: str) -> tuple[str, int] | None:
+    """(host, port) of the page ``url`` (an Origin or a Referer), None when it is not a ``scheme`` URL."""
+    try:
+        parts = urlsplit(url)
+    except ValueError:
+        return None
+    return _url_address(scheme, parts.netloc) if parts.scheme == scheme else None
+
+
+def foreign_request(request: Request, bound: str | None) -> str | None:
+    """Why ``request`` does not come from this server's own page (a sentence for a 403), or None when it does.
+
+    The server's address is the one the connection arrived at (and ``bound``, the name the server was started
+    with); ``Host`` must name it, or a loopback name when it is the loopback, with the server's port. Unless the
+    method only reads, ``Origin`` (or without one ``Referer``) must be a URL on such an address too.
+    """
+    address, port = request.scope.get("server") or (None, None)
+    names = {_address(name) for name in (address, bound) if name and name not in ("0.0.0.0", "::")}
+    if any(_is_loopback(name) for name in names):
+        names |= set(LOOPBACK_NAMES)
+    own = {(name, port) for name in names}
+    scheme = request.url.scheme
+    host = request.headers.get("host", "")
+    if _url_address(scheme, host) not in own:
+        page = f"[{address}]:{port}" if ":" in str(address) else f"{address}:{port}"
+        named = f"not for {host!r}" if host else "and this request names none"
+        return f"This server answers requests for {page} only, {named}; open the page at {scheme}://{page}/."
+    if request.method in SAFE_METHODS:
+        return None
+    origin = request.headers.get("origin") or request.headers.get("referer") or ""
+    if _page_address(origin, scheme) not in own:
+        source = f"comes from {origin!r}" if origin else "names no page"
+        return (f"Only this server's own page may change something here, and this request {source}; use the page "
+                f"at {scheme}://{host}/.")
+    return None
 
 
 @contextlib.contextmanager
@@ -430,11 +515,13 @@ class WebApp:
 
 def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_upload_mb: float = 500.0,
                max_song_minutes: float = 10.0, pose_models: Path | None = None, keep_uploads_hours: float = 24.0,
-               demo: DemoPlan | None = None) -> FastAPI:
+               demo: DemoPlan | None = None, host: str | None = None) -> FastAPI:
     """The web app over the data folder ``data`` (uploads, built-in songs, jobs and their outputs), the
     appearance-model cache ``cache`` (default: the one `dance --target` uses) and the folder of stage-1 runs
     ``pose_models`` offered besides the built-in pose model. Uploads are kept ``keep_uploads_hours`` (see
-    :meth:`WebApp.clean_uploads`); the Demo tab runs ``demo`` (default ``DemoPlan()``)."""
+    :meth:`WebApp.clean_uploads`); the Demo tab runs ``demo`` (default ``DemoPlan()``). ``host``: the name or
+    address the server is started on, accepted in requests' Host besides the address they arrive at (see
+    :func:`foreign_request`)."""
     web = WebApp(data, cache, device, max_upload_mb, max_song_minutes, pose_models, keep_uploads_hours, demo)
     web.start_cleanup.start()
 
@@ -450,14 +537,17 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
 
     @app.exception_handler(DancesynthError)
     async def bad_input(request: Request, e: DancesynthError) -> JSONResponse:
-        return JSONResponse({"error": str(e)}, status_code=413 if isinstance(e, UploadTooLarge) else 400)
+        return JSONResponse({"error": str(e)}, status_code=getattr(e, "status", 400))
 
     @app.exception_handler(KeyError)
     async def not_found(request: Request, e: KeyError) -> JSONResponse:
         return JSONResponse({"error": f"There is no {e.args[0]!r} here; reload the page."}, status_code=404)
 
     @app.middleware("http")
-    async def upload_size(request: Request, call_next):
+    async def checks(request: Request, call_next):
+        refusal = foreign_request(request, host)
+        if refusal is not None:
+            return JSONResponse({"error": refusal}, status_code=403)
         # Refuse an oversized upload from its declared length, before its body is read.
         length = request.headers.get("content-length", "")
         limit = web.max_upload_mb * 2**20 + CHUNK  # the form's own fields come on top of the file
@@ -503,6 +593,10 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
 
     @api.post("/jobs")
     async def create_job(request: Request) -> dict:
+        media_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+        if media_type != "application/json":
+            raise NotJson(f"A job request is JSON, not {media_type or 'untyped'!r}; send it with Content-Type: "
+                          "application/json, as the page does.")
         try:
             body = await request.json()
         except ValueError:
@@ -551,6 +645,7 @@ def serve(host: str, port: int, data: Path, cache: Path | None = None, device: s
     """Run the web app until Ctrl-C."""
     import uvicorn
 
-    app = create_app(data, cache, device, max_upload_mb, max_song_minutes, pose_models, keep_uploads_hours)
+    app = create_app(data, cache, device, max_upload_mb, max_song_minutes, pose_models, keep_uploads_hours,
+                     host=host)
     logger.info(f"dancesynth web app on http://{host}:{port} (data in {app.state.web.data}; Ctrl-C stops it)")
     uvicorn.run(app, host=host, port=port, log_level="warning")

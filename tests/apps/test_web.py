@@ -226,8 +226,9 @@ def test_bad_input_gets_its_sentence_and_breaks_nothing(server, page, tmp_path):
     big.write_bytes(b"\0" * int((MAX_UPLOAD_MB + 1) * 2**20))
     page.set_input_files("#song-file", str(big))
     expect(status).to_contain_text("over this server's upload limit of 2 MB")
-    # The server refuses it too when a client skips the page's check.
-    answer = page.request.post(f"{url}/api/uploads", multipart={
+    # The server refuses it too when a client skips the page's check (a client that is not a browser names the
+    # page as its origin itself).
+    answer = page.request.post(f"{url}/api/uploads", headers={"Origin": url}, multipart={
         "kind": "song", "file": {"name": "big.mp3", "mimeType": "audio/mpeg", "buffer": big.read_bytes()}})
     assert answer.status == 413 and "upload limit" in answer.json()["error"]
     page.set_input_files("#dance-video", str(notes))
@@ -239,7 +240,8 @@ def test_bad_input_gets_its_sentence_and_breaks_nothing(server, page, tmp_path):
     # A pose run that vanished since the page listed it, or that is not a pose model, gets its sentence.
     for run, says in (("mine/gone", "There is no pose model 'mine/gone' on this server"),
                       ("../cache", "There is no pose model '../cache' on this server")):
-        answer = page.request.post(f"{url}/api/jobs", data={"kind": "dance", "pose_model": run})
+        answer = page.request.post(f"{url}/api/jobs", headers={"Origin": url}, data={"kind": "dance",
+                                                                                   "pose_model": run})
         assert answer.status == 400 and answer.json()["error"].startswith(says)
 
 
