@@ -9,16 +9,18 @@ retrieval). Here, for every pose to render:
    position and scale (each bone's vector in torso lengths, so direction and foreshortening count, plus which face
    points are visible). Each group of parts (head and torso, each arm, each leg) takes its own nearest frame, with
    the bones that face the camera (shoulders, hips, face) in every group's cost so no part comes from a frame
-   facing the other way. A choice is kept from frame to frame while it stays nearly as good (no flicker), and frames
-   within ``exclude`` of the frame being learnt are never returned (the network must learn to repair a warp, not
-   to copy its input).
+   facing the other way, and frames whose hands lie on the group's parts costing more. A choice is kept from
+   frame to frame while it stays nearly as good (no flicker), and frames within ``exclude`` of the frame being
+   learnt are never returned (the network must learn to repair a warp, not to copy its input).
 2. **Parts** (:func:`part_labels`): the source frame's person mask (:mod:`stage2_video.masks`) is split into head,
-   torso, upper arms, forearms with hands, thighs and shins with feet by the nearest drawn bone (a hand belongs to
-   its forearm even where it rests on the torso); torso pixels hidden by an arm are filled in from around them.
+   torso, upper arms, forearms, hands, thighs and shins with feet by the nearest drawn bone (a hand belongs to
+   its arm even where it rests on the torso or a thigh); torso pixels hidden by an arm are filled in from around
+   them.
 3. **Warping** (:func:`warp_parts`): the torso moves by the least-squares similarity of its six joints; each limb
    part by the affine that takes its source bone onto the target bone (stretched along the bone, the torso's scale
-   across it); the head by a similarity about the nose with the torso's scale. Parts are painted back to front
-   (torso, legs, head, arms), giving an RGB + alpha image over the plate crop: the generator's "warped prior".
+   across it); head and hands by a similarity about the nose or the wrist with the torso's scale. Parts are
+   painted back to front (torso, legs, head, arms, hands), giving an RGB + alpha image over the plate crop: the
+   generator's "warped prior".
 
 Everything is in the pixels of a bank image (the model's framing at ``scale`` times its resolution).
 """
@@ -54,6 +56,14 @@ MISSING_COST = 1.0
 FACE_COST = 0.3
 # A frame chosen for the previous pose is kept while its cost is within this of the best (squared torso lengths).
 HYSTERESIS = 0.15
+# Retrieval cost of a bank frame whose forearm or hand lies on a group's parts (it would cover them), per point,
+# at full overlap; and how near (torso lengths) to a group's bones a point starts to count: face and torso centre,
+# legs.
+OCCLUSION_COST = 1.0
+OCCLUSION_REACH = {"core": 0.3, "right leg": 0.2, "left leg": 0.2}
+OCCLUDED_BONES = {"core": ((J["Neck"], J["Nose"]), (J["Neck"], J["MidHip"])),
+                  "right leg": ((J["RHip"], J["RKnee"]), (J["RKnee"], J["RAnkle"])),
+                  "left leg": ((J["LHip"], J["LKnee"]), (J["LKnee"], J["LAnkle"]))}
 
 
 @dataclass(frozen=True)
@@ -69,6 +79,9 @@ class Part:
         extend: a line past ``bone``'s child joint, in torso lengths along the bone (the hand), or 0.
         reach: how far (torso lengths) from its lines a person pixel may lie and still belong to it.
         group: the retrieval group it is taken from.
+        bias: torso lengths added to its distance when parts compete for a pixel: torso and legs yield to the
+            arms, hands and head in front of them (an arm across the body, a hand on a hip or a thigh); the face
+            and a hand near it go by distance alone.
     """
 
     name: str
@@ -78,18 +91,19 @@ class Part:
     extend: float
     reach: float
     group: str
+    bias: float = 0.0
 
 
 _R_FOREARM, _L_FOREARM = (J["RElbow"], J["RWrist"]), (J["LElbow"], J["LWrist"])
 # Back to front: the order parts are painted in.
 PARTS: tuple[Part, ...] = (
-    Part("torso", ((J["Neck"], J["MidHip"]),), None, False, 0.0, 0.25, "core"),
-    Part("right thigh", ((J["RHip"], J["RKnee"]),), (J["RHip"], J["RKnee"]), False, 0.0, 0.3, "right leg"),
-    Part("left thigh", ((J["LHip"], J["LKnee"]),), (J["LHip"], J["LKnee"]), False, 0.0, 0.3, "left leg"),
+    Part("torso", ((J["Neck"], J["MidHip"]),), None, False, 0.0, 0.25, "core", bias=0.15),
+    Part("right thigh", ((J["RHip"], J["RKnee"]),), (J["RHip"], J["RKnee"]), False, 0.0, 0.3, "right leg", bias=0.15),
+    Part("left thigh", ((J["LHip"], J["LKnee"]),), (J["LHip"], J["LKnee"]), False, 0.0, 0.3, "left leg", bias=0.15),
     Part("right shin", ((J["RKnee"], J["RAnkle"]), (J["RAnkle"], J["RBigToe"]), (J["RAnkle"], J["RHeel"])),
-         (J["RKnee"], J["RAnkle"]), False, 0.0, 0.3, "right leg"),
+         (J["RKnee"], J["RAnkle"]), False, 0.0, 0.3, "right leg", bias=0.15),
     Part("left shin", ((J["LKnee"], J["LAnkle"]), (J["LAnkle"], J["LBigToe"]), (J["LAnkle"], J["LHeel"])),
-         (J["LKnee"], J["LAnkle"]), False, 0.0, 0.3, "left leg"),
+         (J["LKnee"], J["LAnkle"]), False, 0.0, 0.3, "left leg", bias=0.15),
     Part("head", ((J["Neck"], J["Nose"]), (J["Nose"], J["REye"]), (J["Nose"], J["LEye"]), (J["REye"], J["REar"]),
                   (J["LEye"], J["LEar"])), (J["Neck"], J["Nose"]), True, 0.0, 0.5, "core"),
     Part("right upper arm", ((J["RShoulder"], J["RElbow"]),), (J["RShoulder"], J["RElbow"]), False, 0.0, 0.25,
@@ -102,12 +116,9 @@ PARTS: tuple[Part, ...] = (
     Part("left hand", (), _L_FOREARM, True, 0.35, 0.25, "left arm"),
 )
 TORSO = 0
-# The torso quadrilateral (pixels inside it belong to the torso unless a limb is nearer than TORSO_BIAS).
+# The torso quadrilateral: its pixels are at distance 0 from the torso.
 TORSO_CORNERS = (J["RShoulder"], J["LShoulder"], J["LHip"], J["RHip"])
 TORSO_JOINTS = (J["Neck"], J["RShoulder"], J["LShoulder"], J["MidHip"], J["RHip"], J["LHip"])
-# Inside the torso, a limb's pixels within this many torso lengths of its line stay with the limb (an arm across
-# the body, a hand on the hip).
-TORSO_BIAS = 0.15
 # Indices of DESCRIPTOR_BONES per retrieval group (besides FACING_BONES).
 GROUP_BONES: dict[str, tuple[int, ...]] = {
     "core": (0, 1, 2, 3, 4, 5), "right arm": (6, 7), "left arm": (8, 9), "right leg": (10, 11), "left leg": (12, 13),
@@ -153,9 +164,42 @@ def descriptor(keypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
     return np.where(present[..., None], vectors, 0.0).astype(np.float32), present, face
 
 
+def _distance_to_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``[N, 2]`` points, ``[N, 2]`` segment ends -> ``[N]`` distances."""
+    ab = b - a
+    t = np.clip(((p - a) * ab).sum(-1) / np.maximum((ab ** 2).sum(-1), 1e-9), 0.0, 1.0)
+    return np.linalg.norm(p - (a + t[:, None] * ab), axis=-1)
+
+
+def occlusion_costs(keypoints: np.ndarray) -> dict[str, np.ndarray]:
+    """Per group, ``[N]`` retrieval cost of ``[N, 25, 3]`` bank poses whose elbows, wrists or hand tips lie on the
+    group's parts (a hand on the face, on the belly or on a thigh would be cut out of them and leave a hole)."""
+    kp = np.asarray(keypoints, np.float64)
+    torso = torso_lengths(kp)
+    points = []
+    for elbow, wrist in (_R_FOREARM, _L_FOREARM):
+        seen = (kp[:, elbow, 2] >= MIN_CONFIDENCE) & (kp[:, wrist, 2] >= MIN_CONFIDENCE)
+        forearm = kp[:, wrist, :2] - kp[:, elbow, :2]
+        tip = kp[:, wrist, :2] + forearm / np.maximum(np.linalg.norm(forearm, axis=-1), 1e-6)[:, None] * (
+            PARTS[-1].extend * np.nan_to_num(torso)[:, None])
+        points += [(kp[:, elbow, :2], seen), (kp[:, wrist, :2], seen), (tip, seen)]
+    costs = {}
+    for group in GROUPS:
+        cost = np.zeros(len(kp))
+        for a, b in OCCLUDED_BONES.get(group, ()):
+            bone = (kp[:, a, 2] >= MIN_CONFIDENCE) & (kp[:, b, 2] >= MIN_CONFIDENCE) & np.isfinite(torso)
+            for point, seen in points:
+                near = _distance_to_segment(point, kp[:, a, :2], kp[:, b, :2]) / np.nan_to_num(torso, nan=1.0)
+                overlap = np.clip(1.0 - near / OCCLUSION_REACH[group], 0.0, 1.0)
+                cost += OCCLUSION_COST * np.where(bone & seen, overlap, 0.0)
+        costs[group] = cost
+    return costs
+
+
 def group_costs(bank: tuple[np.ndarray, np.ndarray, np.ndarray], query: np.ndarray) -> dict[str, np.ndarray]:
-    """Retrieval cost of every bank frame for one ``[25, 3]`` query pose, per group: ``{group: [N]}``, lower is
-    nearer (squared torso lengths summed over the group's bones and the facing bones)."""
+    """Retrieval cost of every bank frame (described by :func:`descriptor`) for one ``[25, 3]`` query pose, per
+    group: ``{group: [N]}``, lower is nearer (squared torso lengths summed over the group's bones and the facing
+    bones)."""
     vectors, present, face = bank
     q_vec, q_present, q_face = descriptor(query)
     per_bone = np.where(present, ((vectors - q_vec) ** 2).sum(-1), MISSING_COST) * q_present  # [N, B]
@@ -209,9 +253,7 @@ def part_labels(mask: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
         if not lines and polygon is None:
             continue
         d = cv2.distanceTransform(_segment_mask(shape, lines, polygon), cv2.DIST_L2, 3)
-        if i == TORSO:
-            d = d + TORSO_BIAS * torso
-        distances[i] = np.where(d <= part.reach * torso + (TORSO_BIAS * torso if i == TORSO else 0), d, np.inf)
+        distances[i] = np.where(d <= part.reach * torso, d + part.bias * torso, np.inf)
     nearest = distances.argmin(0).astype(np.uint8)
     reached = np.isfinite(distances.min(0))
     labels[y0:y1, x0:x1] = np.where(person[y0:y1, x0:x1] & reached, nearest, NO_PART)
@@ -394,6 +436,7 @@ class FrameBank:
         self.members = np.asarray(members, np.int64)
         self.size = (frames.shape[2], frames.shape[1])
         self.described = descriptor(self.keypoints[self.members])
+        self.occlusion = occlusion_costs(self.keypoints[self.members])
         self._sources: OrderedDict[int, Source] = OrderedDict()
         self._cache_size = cache_size
 
@@ -424,6 +467,7 @@ class FrameBank:
         :data:`HYSTERESIS` of the best.
         """
         costs = group_costs(self.described, query)
+        costs = {g: cost + self.occlusion[g] for g, cost in costs.items()}
         allowed = np.ones(len(self.members), bool)
         if exclude is not None:
             allowed = (self.members < exclude[0]) | (self.members >= exclude[1])

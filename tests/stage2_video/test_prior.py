@@ -128,9 +128,17 @@ def _bank(poses: np.ndarray) -> FrameBank:
     return FrameBank(frames, np.zeros((len(poses), 8, 8), np.uint8), poses, np.arange(len(poses)))
 
 
+def arms_out(kp: np.ndarray) -> np.ndarray:
+    """``kp`` with both arms held out sideways, clear of the body."""
+    out = kp.copy()
+    for name, xy in (("RElbow", (40, 38)), ("RWrist", (24, 38)), ("LElbow", (88, 38)), ("LWrist", (104, 38))):
+        out[J[name], :2] = xy
+    return out
+
+
 def test_retrieval_ignores_position_and_scale_and_never_returns_excluded_frames():
     rng = np.random.default_rng(1)
-    base = standing_pose()
+    base = arms_out(standing_pose())
     poses = np.repeat(base[None], 60, axis=0)
     poses[:, :, :2] += rng.normal(0, 4, (60, 25, 2))
     bank = _bank(poses)
@@ -146,6 +154,20 @@ def test_retrieval_ignores_position_and_scale_and_never_returns_excluded_frames(
         previous = choice
     # A bank shorter than the window keeps its farthest frames rather than failing.
     assert set(bank.retrieve(poses[30], (-100, 100)).values()) <= {0, 59}
+
+
+def test_retrieval_prefers_frames_whose_hands_cover_no_part():
+    open_arms = arms_out(standing_pose())
+    hand_on_face = open_arms.copy()
+    hand_on_face[J["RElbow"], :2], hand_on_face[J["RWrist"], :2] = (52, 34), (60, 24)
+    nearly = open_arms.copy()
+    nearly[:, :2] += np.random.default_rng(2).normal(0, 1.5, (25, 2))  # a little less like the query
+    bank = _bank(np.stack([hand_on_face, nearly]))
+    query = hand_on_face.copy()
+    query[[J["RElbow"], J["RWrist"]]] = open_arms[[J["RElbow"], J["RWrist"]]]
+    # The head and torso come from the frame with the hand away from the face, not from the one whose face the
+    # hand would have cut out; the right arm from the frame whose arm matches.
+    assert bank.retrieve(query)["core"] == 1
 
 
 @pytest.mark.parametrize("facing_away", [False, True])
