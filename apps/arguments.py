@@ -69,6 +69,7 @@ positive_float = _checked(float, lambda v: v > 0, "must be positive",
 non_negative_float = _checked(float, lambda v: v >= 0, "must be 0 or more",
                               "A finite number of at least 0 (start times, tolerances).")
 fraction = _checked(float, lambda v: 0 <= v <= 1, "must be between 0 and 1", "A number from 0 to 1.")
+tcp_port = _checked(int, lambda v: 1 <= v <= 65535, "must be a port from 1 to 65535", "A TCP port number.")
 
 
 def existing_file(text: str) -> str:

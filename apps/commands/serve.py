@@ -6,7 +6,7 @@ import argparse
 import os
 from pathlib import Path
 
-from apps.arguments import output_folder, positive_float, positive_int
+from apps.arguments import output_folder, positive_float, tcp_port
 
 NAME = "serve"
 HELP = "start the web page: upload a song and a video of a person, watch the progress, play and download the dance"
@@ -24,7 +24,7 @@ Jobs run one at a time in a worker process (the others wait in a queue) and are 
 sends nothing anywhere; it listens on 127.0.0.1 only unless --host says otherwise (it has no login: do not expose
 it to a network you do not trust). It answers requests addressed to --host (or the address a request arrives at;
 also localhost on the loopback) and its port only, and changes made from its own page only, so other web sites
-cannot use it from your browser.
+cannot use it from your browser. One server uses a --data folder at a time.
 
 examples:
   dancesynth serve
@@ -41,7 +41,7 @@ def _default_data() -> Path:
 
 def add_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--host", default="127.0.0.1", help="address to listen on (default 127.0.0.1: this machine only)")
-    p.add_argument("--port", type=positive_int, default=7860, help="port (default 7860)")
+    p.add_argument("--port", type=tcp_port, default=7860, help="port (default 7860)")
     p.add_argument("--data", type=output_folder, default=None, metavar="DIR",
                    help="folder for uploads, built-in songs, jobs and their outputs "
                         "(default ~/.local/share/dancesynth/web)")

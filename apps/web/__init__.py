@@ -2,5 +2,6 @@
 
 ``server.py`` is the HTTP API and serves ``static/`` (the page); ``jobs.py`` keeps jobs as JSON files under the
 data folder and runs them one at a time in a spawned worker process; ``tasks.py`` is what a worker runs (dance,
-appearance training, extraction preview, demo).
+appearance training, extraction preview, demo); ``uploads.py`` receives uploads as they stream, under names the
+server chooses.
 """

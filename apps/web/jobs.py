@@ -6,17 +6,21 @@ DATA/jobs/<id>/job.json     kind, title, params, state (queued -> running -> don
 DATA/jobs/<id>/log.txt      everything the worker logged, progress lines included
 DATA/jobs/<id>/result.json  what the worker hands back: its outputs or an error sentence
 DATA/jobs/<id>/out/         the job's own files (deleted when the job is cancelled or interrupted)
+DATA/server.lock            held (flock) by the one server using the folder; holds its process id
 ```
 
 Only the server process writes ``job.json`` (under one lock); the worker writes the other files. Appearance
 models train into the cache, whose checkpoints are atomic, so a cancelled training leaves a resumable entry. A job
-found running when the server starts lost its worker with the previous server: it becomes interrupted.
+found running when the server starts lost its worker with the previous server: it becomes interrupted, which is
+only true when no other server uses the folder, so a server takes :class:`DataFolderLock` before it touches it.
 """
 
 from __future__ import annotations
 
+import fcntl
 import json
 import multiprocessing
+import os
 import re
 import shutil
 import threading
@@ -24,9 +28,11 @@ import time
 import uuid
 from pathlib import Path
 
+from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
 
 JOBS = "jobs"
+LOCK_FILE = "server.lock"
 JOB_FILE = "job.json"
 LOG_FILE = "log.txt"
 RESULT_FILE = "result.json"
@@ -66,6 +72,31 @@ def _tail(path: Path) -> str:
 def write_json(path: Path, value: dict) -> None:
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(value, indent=2))
+
+
+class DataFolderLock:
+    """One server's exclusive hold on its data folder (``flock`` on ``DATA/server.lock``, released by
+    :meth:`release` or when the process ends, however it ends). A second holder, in this process or another, is
+    refused with a sentence naming the first one's process id."""
+
+    def __init__(self, data: Path) -> None:
+        data.mkdir(parents=True, exist_ok=True)
+        self._file = open(data / LOCK_FILE, "a+")  # not "w": the holder's pid must stay readable to the refused
+        try:
+            fcntl.flock(self._file, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            self._file.seek(0)
+            holder = self._file.read().strip()
+            self._file.close()
+            raise DancesynthError(f"Another dancesynth server{f' (process {holder})' if holder.isdigit() else ''} "
+                                  f"is using the data folder {data}; stop it first, or give this one another "
+                                  "--data.") from None
+        self._file.truncate(0)
+        self._file.write(f"{os.getpid()}\n")
+        self._file.flush()
+
+    def release(self) -> None:
+        self._file.close()
 
 
 class JobStore:

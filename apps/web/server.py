@@ -15,8 +15,16 @@ GET  /api/jobs/{id}/files/{name}    an output (?download=1: as an attachment)
 Uploads older than ``keep_uploads_hours`` are removed at start and at each new upload, unless a queued or
 running job uses them or a cached model names them as its video (continuing its training needs it).
 
-Bad input answers ``{"error": sentence}`` with status 400 (413 for an upload over the size limit), the
-:class:`~dancesynth.core.errors.DancesynthError` sentence the CLI would print.
+Every error answers ``{"error": sentence}``: bad input status 400 (413 for an upload over the size limit or a job
+request over :data:`JOB_BYTES`), with the :class:`~dancesynth.core.errors.DancesynthError` sentence the CLI would
+print; every field of a job request is checked for its type first. Bodies are bounded while they arrive: an upload
+is written into its folder as it streams and stopped at the limit (:mod:`apps.web.uploads`), a job request is
+read up to :data:`JOB_BYTES` and its JSON nesting checked before it is parsed. A cached model that cannot be read
+is listed with the sentence saying why (``damaged``), beside the others.
+
+One server uses a data folder at a time (:class:`~apps.web.jobs.DataFolderLock`, taken before anything in it is
+touched); :func:`serve` also takes its port before, so a second server, a port in use or an address that is not
+this machine's is one sentence and changes nothing.
 
 The server answers its own page only: a request whose ``Host`` is not the address it listens on (``localhost``,
 ``127.0.0.1`` and ``[::1]`` too when that is the loopback) with its port gets 403, which stops DNS rebinding; a
@@ -30,13 +38,16 @@ from __future__ import annotations
 import contextlib
 import csv
 import dataclasses
+import errno
 import functools
 import ipaddress
 import json
 import logging
+import math
 import re
 import shlex
 import shutil
+import socket
 import threading
 import time
 import uuid
@@ -44,12 +55,24 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 from urllib.parse import urlsplit
 
-from fastapi import APIRouter, FastAPI, Form, Request, UploadFile
+from fastapi import APIRouter, FastAPI, Request
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import FileResponse, JSONResponse
 from fastapi.staticfiles import StaticFiles
+from starlette.concurrency import run_in_threadpool
+from starlette.exceptions import HTTPException
 
-from apps.web.jobs import JobStore
-from apps.web.tasks import user_message
+from apps.web.jobs import DataFolderLock, JobStore
+from apps.web.uploads import (
+    FORM_BYTES,
+    UPLOAD_META,
+    UPLOADS,
+    UploadForm,
+    display_name,
+    receive_form,
+    too_big,
+    user_message,
+)
 from dancesynth.core.errors import DancesynthError
 
 if TYPE_CHECKING:
@@ -58,8 +81,6 @@ if TYPE_CHECKING:
 logger = logging.getLogger(__name__)
 
 STATIC = Path(__file__).parent / "static"
-UPLOADS = "uploads"
-UPLOAD_META = "upload.json"
 SONGS = "songs"
 # Built-in songs: a few, short enough to be made in seconds on first use.
 BUILTIN_SONGS, BUILTIN_SECONDS = 3, 30.0
@@ -67,7 +88,20 @@ SONG_CHECK_RATE = 8000  # Hz: enough to check that a file holds audible sound, a
 PRESETS = ("auto", "small", "medium")
 BUILTIN_POSE_MODEL = "built-in (Dance Revolution)"  # stage1_pose.pretrained.DEFAULT_POSE_MODEL
 NO_CACHE = {"Cache-Control": "no-store"}
-CHUNK = 1 << 20
+# A job request is a flat object of a few short fields; these bound what is read and parsed before it is checked.
+JOB_BYTES = 64 * 1024
+JSON_DEPTH = 8
+# The text fields of job requests (ids, names), by the words a sentence uses for them, and their longest length.
+TEXT_FIELDS = {"kind": "job kind", "song": "song", "video": "video", "model": "appearance model",
+               "pose_model": "pose model", "preset": "preset"}
+TEXT_CHARS = 200
+LOSSES = "losses.csv"
+LOSS_ROWS = 500  # the page's loss plot needs no more
+# What GET /api/models tells of each cached model.
+MODEL_FIELDS = ("name", "preset", "video", "video_path", "trained_seconds", "finished", "ssim", "psnr", "step", "size",
+                "damaged")
+# A number as JSON or the page's inputs write it: no underscores, hex or words (Python's float reads "1_0" as 10).
+NUMBER = re.compile(r"\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*")
 # The JSON API's routes sit under this prefix; uploads are refused by size before their body is read.
 API = "/api"
 UPLOADS_ROUTE = "/uploads"
@@ -77,8 +111,8 @@ SAFE_METHODS = ("GET", "HEAD", "OPTIONS")
 DEFAULT_PORTS = {"http": 80, "https": 443}
 
 
-class UploadTooLarge(DancesynthError):
-    """An upload over the server's size limit (HTTP 413 rather than 400)."""
+class BodyTooLarge(DancesynthError):
+    """A request body over its size limit (HTTP 413 rather than 400)."""
 
     status = 413
 
@@ -163,30 +197,122 @@ def _no_error_paths(data: Path):
         raise DancesynthError(user_message(str(e), data)) from e
 
 
-def _safe_name(name: str) -> str:
-    """The uploaded file's name reduced to characters safe in a path (its extension kept)."""
-    stem, dot, ext = Path(name or "upload").name.rpartition(".")
-    stem, ext = (stem, ext) if dot else (ext, "")
-    clean = lambda s, n: re.sub(r"[^A-Za-z0-9_-]+", "_", s)[:n].strip("_")
-    return (clean(stem, 60) or "upload") + (f".{clean(ext, 10)}" if clean(ext, 10) else "")
+def _shown(value: object) -> str:
+    """``repr(value)``, cut to a length a sentence can hold."""
+    text = repr(value)
+    return text if len(text) <= 40 else f"{text[:37]}..."
 
 
 def _number(body: dict, key: str, default: float | None, low: float, high: float, what: str,
             integer: bool = False) -> float | None:
+    """The number ``body[key]`` (a JSON number, or a decimal in a string as the page's inputs send it; absent,
+    null or "": ``default``), checked to lie in ``[low, high]`` (and to be whole with ``integer``)."""
     value = body.get(key, default)
     if value is None or value == "":
         return default
+    number = (float(value) if isinstance(value, (int, float)) and not isinstance(value, bool)
+              else float(value) if isinstance(value, str) and NUMBER.fullmatch(value) else None)
+    if number is None or (integer and not number.is_integer()):
+        raise DancesynthError(f"The {what} must be a {'whole ' if integer else ''}number, got {_shown(value)}.")
+    if not low <= number <= high:
+        raise DancesynthError(f"The {what} must be between {low:g} and {high:g}, got {_shown(value)}.")
+    return int(number) if integer else number
+
+
+def _check_types(body: dict) -> None:
+    """Refuse a job request whose text fields (:data:`TEXT_FIELDS`) hold anything but text (or null) of at most
+    :data:`TEXT_CHARS` characters; its numbers are checked as they are read (:func:`_number`)."""
+    for key, what in TEXT_FIELDS.items():
+        value = body.get(key)
+        if value is not None and (not isinstance(value, str) or len(value) > TEXT_CHARS):
+            raise DancesynthError(f"The {what} of a job request must be a name of at most {TEXT_CHARS} characters, "
+                                  f"got {_shown(value)}; reload the page and try again.")
+
+
+def _json_depth(text: str) -> int:
+    """How deep the arrays and objects of the JSON ``text`` nest (brackets inside strings not counted)."""
+    depth = deepest = 0
+    for bracket in re.findall(r"[\[\]{}]", re.sub(r'"(?:[^"\\]|\\.)*"', "", text)):
+        depth += 1 if bracket in "[{" else -1
+        deepest = max(deepest, depth)
+    return deepest
+
+
+async def read_job_request(request: Request) -> dict:
+    """The JSON object of a job request, read up to :data:`JOB_BYTES` (413 past it, its declared length refused
+    before any of it is read) and checked to nest at most :data:`JSON_DEPTH` deep before it is parsed."""
+    media_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
+    if media_type != "application/json":
+        raise NotJson(f"A job request is JSON, not {media_type or 'untyped'!r}; send it with Content-Type: "
+                      "application/json, as the page does.")
+    too_long = BodyTooLarge(f"A job request is at most {JOB_BYTES // 1024} KB of JSON; send only the fields of "
+                            "the job, as the page does.")
+    length = request.headers.get("content-length", "")
+    if length.isdigit() and int(length) > JOB_BYTES:
+        raise too_long
+    raw = bytearray()
+    async for chunk in request.stream():
+        raw += chunk
+        if len(raw) > JOB_BYTES:
+            raise too_long
     try:
-        value = int(value) if integer else float(value)
-    except (TypeError, ValueError):
-        raise DancesynthError(f"The {what} must be a number, got {value!r}.") from None
-    if not low <= value <= high:
-        raise DancesynthError(f"The {what} must be between {low:g} and {high:g}, got {value:g}.")
-    return value
+        text = raw.decode("utf-8")
+        if _json_depth(text) > JSON_DEPTH:
+            raise DancesynthError(f"A job request nests more than {JSON_DEPTH} levels deep; it is a flat JSON "
+                                  "object, as the page sends.")
+        body = json.loads(text)
+    except ValueError:
+        body = None
+    if not isinstance(body, dict):
+        raise DancesynthError("A job request is a JSON object; reload the page and try again.")
+    return body
+
+
+def _finite(value: object, what: str) -> float | None:
+    """``value`` when it is a finite number, None when it is None or not finite (JSON has no NaN); a ValueError
+    naming ``what`` when it is anything else."""
+    if value is None:
+        return None
+    if not isinstance(value, (int, float)) or isinstance(value, bool):
+        raise ValueError(f"its {what} is {_shown(value)}, not a number")
+    return value if math.isfinite(value) else None
+
+
+def _read_losses(path: Path) -> dict:
+    """The loss columns of a ``losses.csv``: ``{"step": [...], "series": {name: [...]}}``, at most
+    :data:`LOSS_ROWS` evenly spread rows, a value that is not finite (a diverged step) None; a
+    :class:`DancesynthError` when one of those rows holds something else than numbers."""
+    if not path.is_file():
+        return {"step": [], "series": {}}
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    rows = rows[:: max(1, len(rows) // LOSS_ROWS)]
+    keys = [k for k in (rows[0] if rows else {}) if k not in ("step", "epoch", "lr", "seconds")]
+    try:
+        return {"step": [int(r["step"]) for r in rows],
+                "series": {k: [_finite(float(r[k]), k) for r in rows] for k in keys}}
+    except (KeyError, TypeError, ValueError) as e:
+        raise DancesynthError(f"{path} is damaged (a row of it holds {type(e).__name__}: {e}); delete the appearance "
+                              f"model's folder {path.parent} and train it again.") from e
+
+
+def _source_video(entry: Path) -> str | None:
+    """The video a cache entry's ``source.json`` names, None when it has none; an error (ValueError, OSError)
+    when the file cannot be read or names something else than a path."""
+    from stage2_video.cache import SOURCE_FILE
+
+    source = entry / SOURCE_FILE
+    if not source.is_file():
+        return None
+    meta = json.loads(source.read_text())
+    if not isinstance(meta, dict) or not isinstance(meta.get("video", ""), str):
+        raise ValueError(f"{SOURCE_FILE} holds {_shown(meta)}, not the path of a video")
+    return meta.get("video")
 
 
 class WebApp:
-    """What the routes share: the data folder, the cache, the limits and the job store."""
+    """What the routes share: the data folder (held, see :class:`~apps.web.jobs.DataFolderLock`, until
+    :meth:`close`), the cache, the limits and the job store."""
 
     def __init__(self, data: Path, cache: Path | None, device: str, max_upload_mb: float,
                  max_song_minutes: float, pose_models: Path | None = None, keep_uploads_hours: float = 24.0,
@@ -202,9 +328,14 @@ class WebApp:
         self.max_song_minutes = max_song_minutes
         self.keep_uploads_hours = keep_uploads_hours
         self.demo = demo
-        # A worker resolves the default cache itself; the demo's sizes go as a dict (None: DemoPlan()).
-        self.jobs = JobStore(self.data, {"data": str(self.data), "cache": self._cache and str(self._cache),
-                                         "device": device, "demo": demo and dataclasses.asdict(demo)})
+        self.lock = DataFolderLock(self.data)
+        try:
+            # A worker resolves the default cache itself; the demo's sizes go as a dict (None: DemoPlan()).
+            self.jobs = JobStore(self.data, {"data": str(self.data), "cache": self._cache and str(self._cache),
+                                             "device": device, "demo": demo and dataclasses.asdict(demo)})
+        except BaseException:
+            self.lock.release()
+            raise
         self._songs_lock = threading.Lock()
         self._uploads_lock = threading.Lock()  # a cleanup never removes an upload a job is being made from
         # The start's cleanup runs aside: its cache lookup imports torch, which would hold the page back seconds.
@@ -217,54 +348,55 @@ class WebApp:
 
         return self._cache or default_cache_dir()
 
-    # --- uploads -----------------------------------------------------------------------------------------
-    def too_big(self, name: str, size: int) -> UploadTooLarge:
-        return UploadTooLarge(f"{name} is {size / 2**20:.0f} MB, over this server's upload limit of "
-                               f"{self.max_upload_mb:g} MB; use a shorter file or start the server with a larger "
-                               "--max-upload-mb.")
+    def close(self) -> None:
+        """Stop the jobs (a running one becomes interrupted) and let the data folder go."""
+        self.jobs.stop()
+        self.lock.release()
 
-    def save_upload(self, file: UploadFile, kind: str) -> dict:
-        """Store an upload under ``DATA/uploads/<id>/`` after checking it is a song or a video of a person's
-        length; a file that fails the check is deleted."""
-        if kind not in ("song", "video"):
-            raise DancesynthError(f"Unknown upload kind {kind!r}; choose song or video.")
-        name = _safe_name(file.filename or "")
+    # --- uploads -----------------------------------------------------------------------------------------
+    async def receive_upload(self, request: Request) -> dict:
+        """Store the upload ``request`` sends (see :mod:`apps.web.uploads`) under ``DATA/uploads/<id>/`` after
+        checking it is a song or a video of a person's length; an upload refused on the way or by the check leaves
+        nothing behind."""
         folder = self.data / UPLOADS / uuid.uuid4().hex[:12]
         folder.mkdir(parents=True)
-        path, size, limit = folder / name, 0, self.max_upload_mb * 2**20
         try:
-            with open(path, "wb") as f:
-                while chunk := file.file.read(CHUNK):
-                    size += len(chunk)
-                    if size > limit:
-                        raise self.too_big(file.filename or name, size)
-                    f.write(chunk)
-            if size == 0:
-                raise DancesynthError(f"{name} is empty (0 bytes); upload a complete file.")
-            with _no_error_paths(self.data):
-                duration = self._check_song(path) if kind == "song" else self._check_video(path)
+            form = await receive_form(request, folder, self.max_upload_mb)
+            meta = await run_in_threadpool(self._check_upload, form)
         except BaseException:
             shutil.rmtree(folder, ignore_errors=True)
             raise
-        meta = {"id": folder.name, "kind": kind, "name": name, "duration": duration, "size": size}
-        (folder / UPLOAD_META).write_text(json.dumps(meta))
-        self.clean_uploads()
+        await run_in_threadpool(self.clean_uploads)
+        return meta
+
+    def _check_upload(self, form: UploadForm) -> dict:
+        """Check the received upload is what its ``kind`` says and write its ``upload.json``; its metadata."""
+        kind, name = form.fields.get("kind"), display_name(form.filename)
+        if kind not in ("song", "video"):
+            raise DancesynthError(f"Unknown upload kind {_shown(kind)}; choose song or video.")
+        if form.size == 0:
+            raise DancesynthError(f"{name} is empty (0 bytes); upload a complete file.")
+        try:
+            duration = self._check_song(form.path, name) if kind == "song" else self._check_video(form.path)
+        except DancesynthError as e:
+            raise DancesynthError(user_message(str(e).replace(str(form.path), name), self.data)) from e
+        meta = {"id": form.path.parent.name, "kind": kind, "name": name, "file": form.path.name,
+                "duration": duration, "size": form.size}
+        (form.path.parent / UPLOAD_META).write_text(json.dumps(meta))
         return meta
 
     def clean_uploads(self) -> list[str]:
         """Remove the upload folders older than ``keep_uploads_hours`` (by their ``upload.json``) that no queued or
         running job uses and no cache entry's ``source.json`` names as its video; returns the removed ids."""
-        from stage2_video.cache import SOURCE_FILE
-
         root = self.data / UPLOADS
         if not root.is_dir():
             return []
         oldest = time.time() - 3600 * self.keep_uploads_hours
         with self._uploads_lock:
             used = {str(v) for job in self.jobs.active() for v in job["params"].values()}
-            for source in self.cache.glob(f"*/{SOURCE_FILE}"):
-                with contextlib.suppress(OSError, ValueError):
-                    used.add(str(json.loads(source.read_text()).get("video")))
+            for entry in self.cache.glob("*/"):
+                with contextlib.suppress(OSError, ValueError):  # a damaged entry protects no upload
+                    used.add(_source_video(entry) or "")
             removed = []
             for folder in root.iterdir():
                 meta = folder / UPLOAD_META
@@ -279,12 +411,12 @@ class WebApp:
             logger.info(f"removed {len(removed)} upload(s) older than {self.keep_uploads_hours:g} h")
         return removed
 
-    def _check_song(self, path: Path) -> float:
+    def _check_song(self, path: Path, name: str) -> float:
         from dancesynth.core.media import load_song
 
         seconds = len(load_song(path, SONG_CHECK_RATE)) / SONG_CHECK_RATE
         if seconds > 60 * self.max_song_minutes:
-            raise DancesynthError(f"{path.name} lasts {seconds / 60:.1f} min, over this server's limit of "
+            raise DancesynthError(f"{name} lasts {seconds / 60:.1f} min, over this server's limit of "
                                   f"{self.max_song_minutes:g} min; cut the part you want to dance to, or start the "
                                   "server with a larger --max-song-minutes.")
         return seconds
@@ -297,13 +429,15 @@ class WebApp:
         return probe_video(path).duration
 
     def upload(self, upload_id: str, kind: str) -> dict:
+        """The metadata of an upload of ``kind`` and its file's ``path``."""
         meta_file = self.data / UPLOADS / upload_id / UPLOAD_META
-        if not re.fullmatch(r"[0-9a-f]{12}", upload_id or "") or not meta_file.is_file():
+        if not re.fullmatch(r"[0-9a-f]{12}", upload_id) or not meta_file.is_file():
             raise DancesynthError(f"No uploaded {kind} {upload_id!r} on this server; upload it again.")
         meta = json.loads(meta_file.read_text())
         if meta["kind"] != kind:
             raise DancesynthError(f"{meta['name']} was uploaded as a {meta['kind']}, not a {kind}; upload it again.")
-        return {**meta, "path": str(meta_file.parent / meta["name"])}
+        # Uploads stored before the server chose their names are under their own name.
+        return {**meta, "path": str(meta_file.parent / meta.get("file", meta["name"]))}
 
     # --- built-in songs and cached models ----------------------------------------------------------------
     def songs(self) -> list[dict]:
@@ -326,7 +460,7 @@ class WebApp:
         return songs
 
     def song(self, song_id: str) -> dict:
-        if str(song_id).startswith("builtin:"):
+        if song_id.startswith("builtin:"):
             for song in self.songs():
                 if song["id"] == song_id:
                     return song
@@ -342,25 +476,68 @@ class WebApp:
         if not re.fullmatch(r"[0-9a-f]{24}-\w+", str(name)) or not path.is_dir():
             raise DancesynthError(f"There is no appearance model {name!r} in the cache {self.cache}; pick one "
                                   "from the list.")
-        if not has_checkpoint(path) and not (path / "losses.csv").is_file():
+        if not has_checkpoint(path) and not (path / LOSSES).is_file():
             raise DancesynthError(f"The appearance model {name} has not trained yet; train it first.")
         return path
 
     def models(self) -> list[dict]:
-        from dancesynth.core.checkpoint import load_meta
-        from stage2_video.cache import SOURCE_FILE, list_entries
+        """The trained entries of the cache, newest first. One that cannot be read is listed too, by its ``name``
+        and ``damaged``: the sentence saying why (its other fields None), so it hides none of the others."""
+        from dancesynth.core.checkpoint import POINTER
 
-        models = []
-        for entry in list_entries(self.cache):
-            meta = load_meta(entry.path, "stage2")
-            source = entry.path / SOURCE_FILE
-            video = json.loads(source.read_text()).get("video", "") if source.is_file() else meta.get("video", "")
-            validation = meta.get("validation") or {}
-            models.append({"name": entry.path.name, "preset": entry.preset, "video": Path(video).name,
-                           "video_path": video, "trained_seconds": entry.trained_seconds, "finished": entry.finished,
-                           "ssim": validation.get("ssim"), "psnr": validation.get("psnr"), "step": meta.get("step"),
-                           "size": [meta["config"].get("width"), meta["config"].get("height")]})
-        return models
+        found = []
+        for folder in [p for p in self.cache.iterdir() if p.is_dir()] if self.cache.is_dir() else []:
+            try:
+                model = self._model(folder)
+            except DancesynthError as e:
+                model = {**dict.fromkeys(MODEL_FIELDS), "name": folder.name, "damaged": str(e)}
+            except (OSError, KeyError, TypeError, ValueError, AttributeError) as e:
+                reason = f"{type(e).__name__}: {e}".rstrip(".")
+                model = {**dict.fromkeys(MODEL_FIELDS), "name": folder.name,
+                         "damaged": f"The appearance model {folder.name} in the cache is damaged ({reason}); "
+                                    f"delete its folder {folder} and train it again."}
+            if model is not None:
+                found.append(model)
+
+        def newest_first(model: dict) -> float:
+            with contextlib.suppress(OSError):
+                return -(self.cache / model["name"] / POINTER).stat().st_mtime
+            return 0.0
+
+        return sorted(found, key=newest_first)
+
+    def _model(self, folder: Path) -> dict | None:
+        """What :meth:`models` lists of one cache entry, None when it has not trained yet; the reading's error
+        when a file of it is damaged. Numbers that are not finite (a diverged training's SSIM) are None."""
+        from dancesynth.core.checkpoint import load_meta
+        from stage2_video.cache import read_entry
+
+        entry = read_entry(folder)
+        if entry is None:
+            return None
+        meta = load_meta(folder, "stage2")
+        _read_losses(folder / LOSSES)
+        video = _source_video(folder) or meta.get("video") or ""
+        validation, config = meta.get("validation") or {}, meta["config"]
+        numbers = {key: _finite(value, key) for key, value in (
+            ("ssim", validation.get("ssim")), ("psnr", validation.get("psnr")), ("step", meta.get("step")),
+            ("width", config.get("width")), ("height", config.get("height")))}
+        if not math.isfinite(entry.trained_seconds):
+            raise ValueError(f"its trained_seconds is {entry.trained_seconds}")
+        return {"name": folder.name, "preset": entry.preset, "video": Path(video).name, "video_path": video,
+                "trained_seconds": entry.trained_seconds, "finished": entry.finished, "ssim": numbers["ssim"],
+                "psnr": numbers["psnr"], "step": numbers["step"], "size": [numbers["width"], numbers["height"]],
+                "damaged": None}
+
+    def model(self, name: str) -> dict:
+        """The listing of the appearance model ``name`` (see :meth:`models`), refused when it is damaged."""
+        path = self.model_path(name)
+        model = next((m for m in self.models() if m["name"] == path.name), None)
+        if model is None:
+            raise DancesynthError(f"The appearance model {name} has not trained yet; train it first.")
+        if model["damaged"]:
+            raise DancesynthError(model["damaged"])
+        return model
 
     def pose_models(self) -> list[dict]:
         """The built-in pose model (id "") and every stage-1 run in the --pose-models folder or one level down
@@ -393,12 +570,8 @@ class WebApp:
         return path
 
     def losses(self, name: str) -> dict:
-        """The loss columns of the model's ``losses.csv`` (at most 500 evenly spread rows)."""
-        path = self.model_path(name) / "losses.csv"
-        rows = list(csv.DictReader(open(path))) if path.is_file() else []
-        rows = rows[:: max(1, len(rows) // 500)]
-        keys = [k for k in (rows[0] if rows else {}) if k not in ("step", "epoch", "lr", "seconds")]
-        return {"step": [int(r["step"]) for r in rows], "series": {k: [float(r[k]) for r in rows] for k in keys}}
+        """The loss curves of the model (see :func:`_read_losses`)."""
+        return _read_losses(self.model_path(name) / LOSSES)
 
     def sample(self, name: str) -> Path:
         samples = sorted((self.model_path(name) / "samples").glob("step_*.png"))
@@ -433,6 +606,7 @@ class WebApp:
 
     def create_job(self, body: dict) -> dict:
         """Check a job request (one sentence for what is wrong) and queue it."""
+        _check_types(body)
         kind = body.get("kind")
         with _no_error_paths(self.data), self._uploads_lock:
             if kind == "dance":
@@ -443,11 +617,11 @@ class WebApp:
                 minutes = _number(body, "minutes", 15.0, 1.01, 24 * 60, "demo's time budget (minutes)")
                 return self.jobs.create("demo", f"demo, {minutes:g} min", {"minutes": minutes},
                                         self._demo_command(minutes))
-        raise DancesynthError(f"Unknown job kind {kind!r}; choose dance, train, preview or demo.")
+        raise DancesynthError(f"Unknown job kind {_shown(kind)}; choose dance, train, preview or demo.")
 
     def _dance_job(self, body: dict) -> dict:
         pose = self.pose_model_path(body["pose_model"]) if body.get("pose_model") else None
-        song = self.song(body.get("song"))
+        song = self.song(body.get("song") or "")
         start = _number(body, "start", 0.0, 0.0, song["duration"], "segment start (seconds)")
         duration = _number(body, "duration", None, 1.0, 24 * 3600, "segment duration (seconds)")
         seed = int(_number(body, "seed", 0, 0, 2**31 - 1, "seed", integer=True))
@@ -459,11 +633,11 @@ class WebApp:
         segment = ["--start", f"{start:g}", *(["--duration", f"{duration:g}"] if duration else []),
                    "--seed", str(seed), *(["--pose-model", str(pose)] if pose else [])]
         if body.get("model"):
-            model = self.model_path(body["model"])
-            params["video_model"] = str(model)
-            who = ["--video-model", str(model)]
-            source = next((m for m in self.models() if m["name"] == model.name), None)
-            target = f"{source['video']} ({source['preset']})" if source else model.name
+            model = self.model(body["model"])
+            path = self.cache / model["name"]
+            params["video_model"] = str(path)
+            who = ["--video-model", str(path)]
+            target = f"{model['video']} ({model['preset']})"
         else:
             if not body.get("video"):
                 raise DancesynthError("Choose the person: a trained appearance model or an uploaded video.")
@@ -484,13 +658,12 @@ class WebApp:
 
         minutes = _number(body, "minutes", 10.0, 0.05, 24 * 60, "training budget (minutes)")
         if body.get("model"):
-            model = self.model_path(body["model"])
-            source = next((m for m in self.models() if m["name"] == model.name), None)
-            video = Path(source["video_path"]) if source else Path()
+            model = self.model(body["model"])
+            video = Path(model["video_path"])
             if not video.is_file():
-                raise DancesynthError(f"The video the model {model.name} was trained on is gone; upload it again "
+                raise DancesynthError(f"The video the model {model['name']} was trained on is gone; upload it again "
                                       "to continue its training.")
-            preset, name = source["preset"], video.name
+            preset, name = model["preset"], video.name
         else:
             if not body.get("video"):
                 raise DancesynthError("Upload a video of the person, or pick a model to continue.")
@@ -506,7 +679,7 @@ class WebApp:
                                 command)
 
     def _preview_job(self, body: dict) -> dict:
-        upload = self.upload(body.get("video", ""), "video")
+        upload = self.upload(body.get("video") or "", "video")
         command = shlex.join(["dancesynth", "extract-poses", upload["path"], "--out", "poses.npz", "--preview",
                               "preview.mp4"])
         return self.jobs.create("preview", f"who is tracked in {upload['name']}", {"target": upload["path"]},
@@ -521,7 +694,8 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
     ``pose_models`` offered besides the built-in pose model. Uploads are kept ``keep_uploads_hours`` (see
     :meth:`WebApp.clean_uploads`); the Demo tab runs ``demo`` (default ``DemoPlan()``). ``host``: the name or
     address the server is started on, accepted in requests' Host besides the address they arrive at (see
-    :func:`foreign_request`)."""
+    :func:`foreign_request`). The data folder is held from here until the app's lifespan ends (or
+    ``app.state.web.close()``); a :class:`DancesynthError` when another server holds it."""
     web = WebApp(data, cache, device, max_upload_mb, max_song_minutes, pose_models, keep_uploads_hours, demo)
     web.start_cleanup.start()
 
@@ -529,7 +703,7 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
     async def lifespan(app: FastAPI):
         web.jobs.start()
         yield
-        web.jobs.stop()
+        web.close()
 
     app = FastAPI(title="dancesynth", lifespan=lifespan, docs_url=None, redoc_url=None, openapi_url=None)
     app.state.web = web
@@ -543,6 +717,28 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
     async def not_found(request: Request, e: KeyError) -> JSONResponse:
         return JSONResponse({"error": f"There is no {e.args[0]!r} here; reload the page."}, status_code=404)
 
+    @app.exception_handler(RequestValidationError)
+    async def bad_request(request: Request, e: RequestValidationError) -> JSONResponse:
+        problem = next(iter(e.errors()), {})
+        where = " ".join(str(part) for part in problem.get("loc", ()))
+        what = str(problem.get("msg", "is not what this server reads")).rstrip(".")
+        return JSONResponse({"error": f"The request's {where or 'content'} is wrong ({what}); reload the page and "
+                                      "try again."}, status_code=400)
+
+    @app.exception_handler(HTTPException)
+    async def http_error(request: Request, e: HTTPException) -> JSONResponse:
+        what = f"{request.method} {request.url.path}"
+        error = {404: f"There is no {request.url.path} on this server; reload the page.",
+                 405: f"This server does not answer {what}; reload the page."}.get(
+            e.status_code, f"This server cannot answer {what} ({e.status_code}: {e.detail}); reload the page.")
+        return JSONResponse({"error": error}, status_code=e.status_code, headers=e.headers)
+
+    @app.exception_handler(Exception)
+    async def server_error(request: Request, e: Exception) -> JSONResponse:
+        # The server's console has the traceback (uvicorn logs the exception after this answer).
+        return JSONResponse({"error": f"The server failed on this request ({type(e).__name__}: {_shown(str(e))}); "
+                                      "its console has the details."}, status_code=500)
+
     @app.middleware("http")
     async def checks(request: Request, call_next):
         refusal = foreign_request(request, host)
@@ -550,10 +746,10 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
             return JSONResponse({"error": refusal}, status_code=403)
         # Refuse an oversized upload from its declared length, before its body is read.
         length = request.headers.get("content-length", "")
-        limit = web.max_upload_mb * 2**20 + CHUNK  # the form's own fields come on top of the file
+        limit = web.max_upload_mb * 2**20 + FORM_BYTES  # the form's own fields come on top of the file
         if request.url.path == API + UPLOADS_ROUTE and length.isdigit() and int(length) > limit:
-            name = request.headers.get("x-file-name", "The file")
-            return JSONResponse({"error": str(web.too_big(name, int(length)))}, status_code=413)
+            error = too_big(request.headers.get("x-file-name"), int(length), web.max_upload_mb)
+            return JSONResponse({"error": str(error)}, status_code=413)
         return await call_next(request)
 
     api = APIRouter(prefix=API)
@@ -568,8 +764,8 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
                 "cache": str(web.cache), "data": str(web.data), "device": web.device}
 
     @api.post(UPLOADS_ROUTE)
-    def upload(file: UploadFile, kind: str = Form(...)) -> dict:
-        return web.save_upload(file, kind)
+    async def upload(request: Request) -> dict:
+        return await web.receive_upload(request)
 
     @api.get("/songs")
     def songs() -> list[dict]:
@@ -593,17 +789,7 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
 
     @api.post("/jobs")
     async def create_job(request: Request) -> dict:
-        media_type = request.headers.get("content-type", "").split(";")[0].strip().lower()
-        if media_type != "application/json":
-            raise NotJson(f"A job request is JSON, not {media_type or 'untyped'!r}; send it with Content-Type: "
-                          "application/json, as the page does.")
-        try:
-            body = await request.json()
-        except ValueError:
-            body = None
-        if not isinstance(body, dict):
-            raise DancesynthError("A job request is a JSON object; reload the page and try again.")
-        return await _in_thread(web.create_job, body)
+        return await run_in_threadpool(web.create_job, await read_job_request(request))
 
     @api.get("/jobs")
     def jobs() -> list[dict]:
@@ -633,19 +819,61 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
     return app
 
 
-async def _in_thread(fn, *args):
-    from starlette.concurrency import run_in_threadpool
+def listen(host: str, port: int) -> socket.socket:
+    """A socket listening on ``host`` (an address of this machine or its name; IPv6 when it holds a colon) at
+    ``port``; a :class:`DancesynthError` saying why there is none: a port in use, reserved or out of range, or a
+    host that is not this machine's."""
+    try:
+        return _bound(host, port)
+    except OverflowError as e:
+        raise DancesynthError(f"The port {port} does not exist; choose one from 1024 to 65535 with --port.") from e
+    except socket.gaierror as e:
+        raise DancesynthError(f"The host {host!r} is not an address or a known name ({e.strerror}); give --host an "
+                              "address of this machine, e.g. 127.0.0.1 (this machine only) or 0.0.0.0 (its "
+                              "networks).") from e
+    except OSError as e:
+        if e.errno == errno.EADDRINUSE:
+            why = (f"port {port} on {host} is already in use (by another `dancesynth serve` or another program); "
+                   "stop that, or choose another --port")
+        elif e.errno == errno.EADDRNOTAVAIL:
+            why = (f"{host} is not an address of this machine; give --host one of its addresses, e.g. 127.0.0.1 "
+                   "(this machine only) or 0.0.0.0 (its networks)")
+        elif e.errno in (errno.EACCES, errno.EPERM):
+            why = f"port {port} is reserved for the system; choose one from 1024 to 65535 with --port"
+        else:
+            why = f"{e.strerror or e}; check --host and --port"
+        raise DancesynthError(f"The server cannot listen on {host}:{port}: {why}.") from e
 
-    return await run_in_threadpool(fn, *args)
+
+def _bound(host: str, port: int) -> socket.socket:
+    """A socket bound to ``host``:``port`` and listening (IPv6 when ``host`` holds a colon)."""
+    sock = socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET)
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)  # as uvicorn: a restart need not wait TIME_WAIT
+        sock.bind((host, port))
+        sock.listen(2048)
+        return sock
+    except BaseException:
+        sock.close()
+        raise
 
 
 def serve(host: str, port: int, data: Path, cache: Path | None = None, device: str = "auto",
           max_upload_mb: float = 500.0, max_song_minutes: float = 10.0, pose_models: Path | None = None,
           keep_uploads_hours: float = 24.0) -> None:
-    """Run the web app until Ctrl-C."""
+    """Run the web app until Ctrl-C. Its port and its data folder are taken first, so that a port in use, a bad
+    host or a data folder another server uses is one sentence before anything changes."""
     import uvicorn
 
-    app = create_app(data, cache, device, max_upload_mb, max_song_minutes, pose_models, keep_uploads_hours,
-                     host=host)
+    sock = listen(host, port)
+    try:
+        app = create_app(data, cache, device, max_upload_mb, max_song_minutes, pose_models, keep_uploads_hours,
+                         host=host)
+    except BaseException:
+        sock.close()
+        raise
     logger.info(f"dancesynth web app on http://{host}:{port} (data in {app.state.web.data}; Ctrl-C stops it)")
-    uvicorn.run(app, host=host, port=port, log_level="warning")
+    server = uvicorn.Server(uvicorn.Config(app, log_level="warning"))
+    server.run(sockets=[sock])
+    if not server.started:
+        raise DancesynthError("The web app did not start (the lines above say why); fix that and start it again.")

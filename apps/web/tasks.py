@@ -12,7 +12,6 @@ import itertools
 import json
 import logging
 import os
-import re
 import signal
 import sys
 import threading
@@ -22,6 +21,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from apps.web.jobs import JOB_FILE, LOG_FILE, OUT, RESULT_FILE, write_json
+from apps.web.uploads import user_message
 
 logger = logging.getLogger(__name__)
 
@@ -32,11 +32,6 @@ DEMO_FOLDER = "demo"
 # Files of the demo's folder the page shows (summary.md links to them).
 DEMO_FILES = ("summary.md", "frames.png", "dance.mp4", "skeleton.mp4", "side_by_side.mp4", "target/target.mp4",
               "runs/video/losses.png")
-
-
-def user_message(message: str, data: Path) -> str:
-    """A message without the data folder's upload paths: ``DATA/uploads/<id>/song.mp3`` reads ``song.mp3``."""
-    return re.sub(re.escape(str(data / "uploads")) + r"/[0-9a-f]+/", "", message)
 
 
 def _relative(path: Path, data: Path) -> str:

@@ -1,15 +1,16 @@
-"""The web app's job store across a server restart, and its upload retention (no browser, no worker)."""
+"""The web app's job store across a server restart, one server per data folder, and its upload retention (no
+browser, no worker)."""
 
-import io
 import json
 import os
 import shlex
+import socket
 import time
 from pathlib import Path
 
-import numpy as np
-import soundfile
-from fastapi import UploadFile
+import pytest
+import uvicorn
+from web_client import FORM, call, form, wav
 
 import apps.demo
 from apps.cli import main
@@ -17,6 +18,7 @@ from apps.demo import DemoPlan
 from apps.web.jobs import JobStore, parse_progress
 from apps.web.server import create_app
 from apps.web.tasks import demo_job
+from dancesynth.core.errors import DancesynthError
 
 
 def test_a_job_left_running_by_a_stopped_server_becomes_interrupted_and_loses_its_partial_outputs(tmp_path):
@@ -70,18 +72,18 @@ def test_old_uploads_are_removed_unless_a_queued_job_or_a_cached_model_needs_the
     (cache / "0123abcd-small" / "source.json").write_text(json.dumps({"video": str(trained / "clip.mp4")}))
 
     # At start: create_app cleans in the background (it starts no job: the app's lifespan does).
-    web = create_app(data, cache, device="cpu", keep_uploads_hours=24.0).state.web
+    app = create_app(data, cache, device="cpu", keep_uploads_hours=24.0)
+    web = app.state.web
     web.start_cleanup.join(60)
     assert not unused.exists() and fresh.is_dir() and queued.is_dir() and trained.is_dir()
 
     # With a shorter retention, the next upload's cleanup takes the hour-old one; what a job or a model needs stays.
     web.keep_uploads_hours = 0.5
-    song = io.BytesIO()
-    soundfile.write(song, np.sin(np.arange(16000) / 8000 * 2 * np.pi * 220), 8000, format="WAV")
-    song.seek(0)
-    saved = web.save_upload(UploadFile(song, filename="song.wav"), "song")
+    status, saved, _ = call(app, "POST", "/api/uploads", FORM, form("song", "song.wav", wav()))
+    assert status == 200
     assert not fresh.exists() and queued.is_dir() and trained.is_dir()
     assert sorted(p.name for p in (data / "uploads").iterdir()) == sorted([queued.name, trained.name, saved["id"]])
+    web.close()
 
 
 def test_a_demo_jobs_command_makes_the_call_the_job_makes(tmp_path, monkeypatch):
@@ -107,3 +109,92 @@ def test_a_demo_jobs_command_makes_the_call_the_job_makes(tmp_path, monkeypatch)
         else:
             exec(argv[2], {})
         assert calls[-1] == calls[-2] == (str(tmp_path / "data" / "demo"), 2.5, 0, "cpu", plan or DemoPlan())
+        web.close()
+
+
+def _running_job(data: Path) -> Path:
+    """The folder of a job a server is running, with its partial output."""
+    job = JobStore(data, {}).create("dance", "a dance", {})
+    folder = data / "jobs" / job["id"]
+    (folder / "out").mkdir()
+    (folder / "out" / "dance.mp4").write_bytes(b"half a video")
+    (folder / "job.json").write_text(json.dumps({**job, "state": "running", "pid": os.getpid()}))
+    return folder
+
+
+def _snapshot(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_a_second_server_on_a_data_folder_is_refused_and_changes_nothing(tmp_path):
+    data = tmp_path / "data"
+    first = create_app(data, tmp_path / "cache", device="cpu")
+    first.state.web.start_cleanup.join(60)
+    folder = _running_job(data)
+    before = _snapshot(data)
+    try:
+        with pytest.raises(DancesynthError) as refused:
+            create_app(data, tmp_path / "cache", device="cpu")
+        assert str(refused.value) == (f"Another dancesynth server (process {os.getpid()}) is using the data folder "
+                                      f"{data}; stop it first, or give this one another --data.")
+        assert _snapshot(data) == before
+        assert json.loads((folder / "job.json").read_text())["state"] == "running"
+    finally:
+        first.state.web.close()
+    # Once the first server is gone, the next one takes the folder (and the job it left is interrupted).
+    second = create_app(data, tmp_path / "cache", device="cpu")
+    second.state.web.start_cleanup.join(60)
+    second.state.web.jobs._launch = lambda job: None  # this test runs no worker
+    second.state.web.jobs.start()
+    second.state.web.close()
+    assert json.loads((folder / "job.json").read_text())["state"] == "interrupted"
+
+
+def test_serve_on_a_data_folder_in_use_exits_1_with_a_sentence_and_changes_nothing(tmp_path, capsys, monkeypatch):
+    data = tmp_path / "data"
+    first = create_app(data, tmp_path / "cache", device="cpu")
+    first.state.web.start_cleanup.join(60)
+    folder = _running_job(data)
+    before = _snapshot(data)
+    monkeypatch.setattr(uvicorn.Server, "run", lambda self, sockets=None: pytest.fail("the second server started"))
+    try:
+        flags = ["--data", str(data), "--cache", str(tmp_path / "cache"), "--port", str(_free_port())]
+        assert main(["serve", *flags]) == 1
+    finally:
+        first.state.web.close()
+    assert capsys.readouterr().err == (f"dancesynth serve: error: Another dancesynth server (process {os.getpid()}) "
+                                       f"is using the data folder {data}; stop it first, or give this one another "
+                                       "--data.\n")
+    assert _snapshot(data) == before and (folder / "out" / "dance.mp4").is_file()
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@pytest.mark.parametrize("flags, says", [
+    (["--port", "{taken}"], "The server cannot listen on 127.0.0.1:{taken}: port {taken} on 127.0.0.1 is already in "
+                            "use (by another `dancesynth serve` or another program); stop that, or choose another "
+                            "--port."),
+    (["--host", "no-such-host.invalid"], "The host 'no-such-host.invalid' is not an address or a known name"),
+    (["--host", "192.0.2.1"], "The server cannot listen on 192.0.2.1:{free}: 192.0.2.1 is not an address of this "
+                              "machine"),
+    (["--port", "70000"], "dancesynth serve: error: argument --port: must be a port from 1 to 65535, got '70000'"),
+])
+def test_serve_on_a_port_it_cannot_have_exits_1_with_a_sentence_before_touching_the_data_folder(tmp_path, capsys,
+                                                                                                monkeypatch, flags,
+                                                                                                says):
+    monkeypatch.setattr(uvicorn.Server, "run", lambda self, sockets=None: pytest.fail("the server started"))
+    data = tmp_path / "data"
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port, free = taken.getsockname()[1], _free_port()
+        flags = [flag.format(taken=port) for flag in flags]
+        assert main(["serve", "--data", str(data), *(["--port", str(free)] if "--port" not in flags else []),
+                     *flags]) == 1
+    err = capsys.readouterr().err
+    assert says.format(taken=port, free=free) in err and err.count("\n") == 1 and "Traceback" not in err
+    assert not data.exists()

@@ -98,7 +98,9 @@ async function loadPoseModels() {
 }
 
 async function loadModels() {
-  const models = await api("/api/models");
+  const listed = await api("/api/models");
+  // A damaged entry is listed with the sentence saying why, and offered for nothing.
+  const models = listed.filter(m => !m.damaged);
   state.models = models;
   const select = $("#dance-model");
   const chosen = select.value;
@@ -106,13 +108,15 @@ async function loadModels() {
     text: `${m.video} · ${m.preset} · SSIM ${m.ssim == null ? "?" : m.ssim.toFixed(3)} · ${duration(m.trained_seconds)}` })));
   if (!models.length) select.append(el("option", { value: "", text: "(none yet: train one, or use a video)" }));
   if (models.some(m => m.name === chosen)) select.value = chosen;
-  $("#models-table tbody").replaceChildren(...models.map(m => el("tr", { "data-model": m.name },
-    el("td", { text: m.video, title: m.name }), el("td", { text: m.preset }), el("td", { text: m.size.join("×") }),
-    el("td", { class: "ssim", text: m.ssim == null ? "–" : m.ssim.toFixed(3) }),
-    el("td", { text: duration(m.trained_seconds) + (m.finished ? " (all epochs)" : "") }),
-    el("td", { text: m.step }),
-    el("td", {}, el("button", { type: "button", text: "Continue", onclick: () => train({ model: m.name }, $("#train-error")) })))));
-  if (!models.length) $("#models-table tbody").append(el("tr", {}, el("td", { colspan: 7, class: "empty",
+  $("#models-table tbody").replaceChildren(...listed.map(m => m.damaged
+    ? el("tr", { "data-model": m.name }, el("td", { text: m.name }), el("td", { colspan: 6, class: "error", text: m.damaged }))
+    : el("tr", { "data-model": m.name },
+      el("td", { text: m.video, title: m.name }), el("td", { text: m.preset }), el("td", { text: m.size.join("×") }),
+      el("td", { class: "ssim", text: m.ssim == null ? "–" : m.ssim.toFixed(3) }),
+      el("td", { text: duration(m.trained_seconds) + (m.finished ? " (all epochs)" : "") }),
+      el("td", { text: m.step }),
+      el("td", {}, el("button", { type: "button", text: "Continue", onclick: () => train({ model: m.name }, $("#train-error")) })))));
+  if (!listed.length) $("#models-table tbody").append(el("tr", {}, el("td", { colspan: 7, class: "empty",
     text: "No appearance model in the cache yet." })));
 }
 
