@@ -524,7 +524,8 @@ class WebApp:
             ("width", config.get("width")), ("height", config.get("height")))}
         if not math.isfinite(entry.trained_seconds):
             raise ValueError(f"its trained_seconds is {entry.trained_seconds}")
-        return {"name": folder.name, "preset": entry.preset, "video": Path(video).name, "video_path": video,
+        return {"name": folder.name, "preset": entry.preset, "video": Path(user_message(video, self.data)).name,
+                "video_path": video,
                 "trained_seconds": entry.trained_seconds, "finished": entry.finished, "ssim": numbers["ssim"],
                 "psnr": numbers["psnr"], "step": numbers["step"], "size": [numbers["width"], numbers["height"]],
                 "damaged": None}

@@ -83,8 +83,8 @@ def preview_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
     info = probe_video(video)
     count = max(1, int(PREVIEW_SECONDS * info.fps))
     frames = list(itertools.islice(read_frames(video), count))
-    found = extract_frames(frames, info.fps, (info.width, info.height), total=len(frames),
-                           source=video.name)
+    # The whole path: the job's error message names an upload by the user's name for it (user_message).
+    found = extract_frames(frames, info.fps, (info.width, info.height), total=len(frames), source=str(video))
     out.mkdir(exist_ok=True)
     write_preview(video, found.poses, out / "preview.mp4")
     middle = len(frames) // 2
