@@ -25,7 +25,7 @@ composited frame against the real pose, torso-normalised), SSIM and PSNR inside 
 ``BOX_MARGIN``), training minutes, steps and steps/s, the warp's milliseconds per frame, and for ``trained`` the
 frames/s of `dance`'s frame loop with the cached model on a ``--dance-seconds`` segment of a real song. PCK is
 partly circular for a warp (its joints land on the target by construction): read it with the image measures.
-Writes ``docs/real_footage/<clip>.png``: 8 held-out frames, real | warped prior | trained output (| today), and
+Writes ``docs/real_footage/<clip>.jpg``: 8 held-out frames, real | warped prior | trained output (| today), and
 8 frames of the clip's person dancing to the song.
 """
 
@@ -210,7 +210,7 @@ def contact_sheet(columns: list[list[np.ndarray]], dance_video: Path | None, out
             pad = np.zeros((row.shape[0], max(0, width - row.shape[1]), 3), np.uint8)
             rows.append(cv2.resize(np.concatenate([row, pad], 1), (width, row.shape[0])))
     out.parent.mkdir(parents=True, exist_ok=True)
-    cv2.imwrite(str(out), cv2.cvtColor(np.concatenate(rows), cv2.COLOR_RGB2BGR))
+    cv2.imwrite(str(out), cv2.cvtColor(np.concatenate(rows), cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 90])
 
 
 def run(args: argparse.Namespace) -> None:
@@ -247,7 +247,7 @@ def run(args: argparse.Namespace) -> None:
                 dance_fps = len(made.poses) / made.render_seconds
         columns = [results[r].frames for r in ("real", "warp", "trained", "today") if r in results]
         if len(columns) > 1:
-            contact_sheet(columns, dance_video, args.sheets / f"{args.clip}.png")
+            contact_sheet(columns, dance_video, args.sheets / f"{args.clip}.jpg")
     print(f"clip {video.name}: {len(picks)} usable held-out frames of {len(held_out)}, {sum(dancing)} dance frames; "
           f"{args.minutes:g} min per trained model on this machine; `dance` frame loop {dance_fps:.1f} frames/s "
           f"({args.dance_seconds:g} s)")
