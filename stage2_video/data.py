@@ -84,10 +84,22 @@ def _key_file(cache: Path) -> Path:
     return cache.with_name(cache.name + KEY_SUFFIX)
 
 
+def _loads(cache: Path) -> bool:
+    """Whether the array file ``cache`` opens: one cut short (a full disk, a copy stopped midway) does not, and
+    is then made again instead of failing later. Other files are read by their own loaders."""
+    if cache.suffix != ".npy":
+        return True
+    try:
+        np.load(cache, mmap_mode="r")
+    except (ValueError, OSError, EOFError):
+        return False
+    return True
+
+
 def _is_cached(cache: Path, key: str) -> bool:
-    """Whether ``cache`` is complete and was made from what ``key`` names."""
+    """Whether ``cache`` is complete (it loads) and was made from what ``key`` names."""
     marker = _key_file(cache)
-    return cache.is_file() and marker.is_file() and marker.read_text() == key
+    return cache.is_file() and marker.is_file() and marker.read_text() == key and _loads(cache)
 
 
 @contextlib.contextmanager

@@ -85,3 +85,15 @@ def test_frames_without_a_torso_are_neither_trained_on_nor_scored(tmp_path, two_
     with pytest.raises(DancesynthError, match="too few"):
         train_video(a, tmp_path / "run", options=TrainOptions(epochs=1), poses=tmp_path / "lost.npz", device="cpu",
                     overrides=tiny_config)
+
+
+def test_a_cut_short_frames_cache_is_made_again(tmp_path, two_videos):
+    a, _, poses_file = two_videos
+    run = tmp_path / "run"
+    run.mkdir()
+    first, _ = _prepare(a, run, poses_file)
+    first = np.array(first)
+    (cache,) = run.glob("frames_*.npy")
+    cache.write_bytes(cache.read_bytes()[: cache.stat().st_size // 2])
+    again, _ = _prepare(a, run, poses_file)
+    assert np.array_equal(np.asarray(again), first)
