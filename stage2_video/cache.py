@@ -15,6 +15,7 @@ import contextlib
 import fcntl
 import json
 import os
+import shutil
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -129,10 +130,18 @@ def appearance_model_for(video: str | os.PathLike, minutes: float, preset: str =
     if _done(read_entry(path), minutes):
         return path
     # Another process may train it in the meantime: the lock waits for nobody, and train_for looks again.
+    created = not path.exists()
     with _locked(path):
-        if not (path / SOURCE_FILE).is_file():
-            with atomic_path(path / SOURCE_FILE) as tmp:
-                tmp.write_text(json.dumps({"video_sha256": video_digest(video), "video": str(video.resolve()),
-                                           "preset": preset}, indent=2))
-        train_for(video, path, minutes, preset, device, precision)
+        try:
+            if not (path / SOURCE_FILE).is_file():
+                with atomic_path(path / SOURCE_FILE) as tmp:
+                    tmp.write_text(json.dumps({"video_sha256": video_digest(video), "video": str(video.resolve()),
+                                               "preset": preset}, indent=2))
+            train_for(video, path, minutes, preset, device, precision)
+        except BaseException:
+            # A failure before the first checkpoint (e.g. no person in the video) leaves no half-made entry;
+            # the lock is still held, so no other process is using the folder.
+            if created and not has_checkpoint(path):
+                shutil.rmtree(path, ignore_errors=True)
+            raise
     return path

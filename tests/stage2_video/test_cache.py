@@ -5,7 +5,10 @@ import os
 import shutil
 import signal
 
-from stage2_video.cache import entry_path, list_entries, read_entry, train_for
+import pytest
+
+from dancesynth.core.errors import DancesynthError
+from stage2_video.cache import appearance_model_for, entry_path, list_entries, read_entry, train_for
 from stage2_video.data import video_digest
 from stage2_video.train import VideoTrainer
 
@@ -56,3 +59,18 @@ def test_an_interrupted_training_leaves_a_resumable_entry_of_its_own_video(tiny_
     resumed = read_entry(entry)
     assert (entry / "latest.json").read_text() != before
     assert resumed.trained_seconds > stopped.trained_seconds
+
+
+def test_a_target_that_fails_before_its_first_checkpoint_leaves_no_entry(tiny_target, tmp_path, monkeypatch):
+    video, _ = tiny_target
+    cache = tmp_path / "cache"
+
+    def no_person(*args, **kwargs):
+        (entry_path(video, "small", cache) / "poses.npz").write_bytes(b"partial")
+        raise DancesynthError("No person was found in the target video.")
+
+    monkeypatch.setattr("stage2_video.cache.check_target_video", lambda video: None)  # the tiny target is short
+    monkeypatch.setattr("stage2_video.cache.train_video", no_person)
+    with pytest.raises(DancesynthError, match="No person"):
+        appearance_model_for(video, 1.0, "small", cache, device="cpu")
+    assert not entry_path(video, "small", cache).exists() and list(cache.iterdir()) == []
