@@ -67,6 +67,12 @@ def _describe(kind: str) -> str:
     return KIND_DESCRIPTIONS.get(kind, f"a {kind!r} run")
 
 
+def or_delete_cached(run_dir: str | os.PathLike) -> str:
+    """The end of a sentence telling what to do with a damaged run folder that is a cache entry of
+    `dance --target` (stage2_video.cache), which the user never gave as an --out folder."""
+    return f", or, if {run_dir} is a model that `dance --target` cached, delete that folder so it is trained again"
+
+
 @contextlib.contextmanager
 def run_file_contents(path: str | os.PathLike) -> Iterator[None]:
     """Turn an error raised while the contents of ``path`` (a run's ``latest.json`` or training state) are put
@@ -213,7 +219,8 @@ def load_meta(run_dir: str | os.PathLike, expected_kind: str) -> dict[str, Any]:
         if not isinstance(kind, str):
             raise TypeError(f"kind {kind!r} is not a name")
     except (json.JSONDecodeError, KeyError, TypeError, UnicodeDecodeError) as e:
-        raise DancesynthError(f"{path} is not dancesynth checkpoint metadata; pass the --out folder of {what}.") from e
+        raise DancesynthError(f"{path} is not dancesynth checkpoint metadata; pass the --out folder of {what}"
+                              f"{or_delete_cached(run_dir)}.") from e
     if kind != expected_kind:
         raise DancesynthError(f"{run_dir} is {_describe(kind)}, but {what} is needed here; "
                               "pass such a run folder instead.")
@@ -254,7 +261,7 @@ def load_training_state(run_dir: str | os.PathLike, meta: dict[str, Any]) -> dic
     path = checkpoint_files(Path(run_dir), meta)[1]
     if not path.is_file():
         raise DancesynthError(f"{run_dir} has no training state ({path.name}); it cannot be resumed, "
-                              "start a new run with another --out folder.")
+                              f"start a new run with another --out folder{or_delete_cached(run_dir)}.")
     try:
         with warnings.catch_warnings():  # a foreign pickle's protocol warning would add lines to the one error
             warnings.filterwarnings("ignore", message="Detected pickle protocol")
@@ -262,13 +269,13 @@ def load_training_state(run_dir: str | os.PathLike, meta: dict[str, Any]) -> dic
     except (RuntimeError, OSError, EOFError, ValueError, pickle.UnpicklingError) as e:
         # weights_only refuses pickled code as UnpicklingError; random bytes raise any of the others.
         raise DancesynthError(f"{path} is not a training state this program wrote ({type(e).__name__}); "
-                              "start a new run with another --out folder.") from e
+                              f"start a new run with another --out folder{or_delete_cached(run_dir)}.") from e
     if not isinstance(saved, dict) or not isinstance(saved.get("state"), dict):
         raise DancesynthError(f"{path} is not a training state this program wrote (no state table); "
-                              "start a new run with another --out folder.")
+                              f"start a new run with another --out folder{or_delete_cached(run_dir)}.")
     if saved.get("save_id") != meta.get("save_id"):
         raise DancesynthError(f"{path} does not belong to {Path(run_dir) / POINTER} (the run was stopped while "
-                              "saving); start a new run with another --out folder.")
+                              f"saving); start a new run with another --out folder{or_delete_cached(run_dir)}.")
     return saved["state"]
 
 

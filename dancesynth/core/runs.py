@@ -185,7 +185,8 @@ class RunFolder:
         training = ckpt.load_training_state(self.path, meta)
         if "extra" not in training:
             raise DancesynthError(f"{self.path} was saved by an older dancesynth whose training state cannot be "
-                                  "resumed; start a new run with another --out folder.")
+                                  "resumed; start a new run with another --out folder"
+                                  f"{ckpt.or_delete_cached(self.path)}.")
         with ckpt.run_file_contents(self.path / ckpt.POINTER):
             model.load_state_dict(state_dict)
             self._purge_step = int(meta.get("step", 0)) + 1

@@ -74,3 +74,14 @@ def test_a_target_that_fails_before_its_first_checkpoint_leaves_no_entry(tiny_ta
     with pytest.raises(DancesynthError, match="No person"):
         appearance_model_for(video, 1.0, "small", cache, device="cpu")
     assert not entry_path(video, "small", cache).exists() and list(cache.iterdir()) == []
+
+
+def test_a_damaged_cache_entry_says_to_delete_its_folder(tiny_target, tmp_path):
+    video, _ = tiny_target
+    entry = entry_path(video, "small", tmp_path / "cache")
+    entry.mkdir(parents=True)
+    (entry / "latest.json").write_text("[1, 2]")
+    with pytest.raises(DancesynthError, match="not dancesynth checkpoint metadata") as raised:
+        read_entry(entry)
+    assert f"if {entry} is a model that `dance --target` cached, delete that folder so it is trained again" in (
+        str(raised.value))
