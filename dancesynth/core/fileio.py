@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import re
 import secrets
 import shutil
 import stat
@@ -28,6 +29,44 @@ def temporary_sibling(path: str | os.PathLike) -> Path:
     """
     path = Path(path)
     return path.with_name(f".{path.stem}.{os.getpid()}-{secrets.token_hex(4)}{PART_MARKER}{path.suffix}")
+
+
+# What temporary_sibling names: group 1 is the writing process's id.
+_TEMPORARY_NAME = re.compile(r"^\..+\.(\d+)-[0-9a-f]{8}" + re.escape(PART_MARKER) + r"(?:\.[^.]*)?$")
+_swept: set[str] = set()  # folders this process has already cleared of dead writers' temporary files
+
+
+def _alive(pid: int) -> bool:
+    """Whether a process ``pid`` exists (one of another user counts; so does a reused id, erring on keeping)."""
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OverflowError):
+        return True
+    return True
+
+
+def remove_stale_temporaries(folder: str | os.PathLike) -> None:
+    """Delete the temporary files (:func:`temporary_sibling` names) in ``folder`` whose writing process no longer
+    runs, e.g. one killed with SIGKILL while rendering, which had no chance to delete its own. Only regular files
+    of exactly that name pattern with a dead process id go; once per folder per process, as listing a big
+    folder before every write would cost too much. Failures are ignored: this is tidying, not the write."""
+    try:
+        key = os.path.realpath(folder)
+        if key in _swept:
+            return
+        _swept.add(key)
+        with os.scandir(key) as entries:
+            stale = [e.path for e in entries if (m := _TEMPORARY_NAME.match(e.name)) is not None
+                     and e.is_file(follow_symlinks=False) and not _alive(int(m.group(1)))]
+    except OSError:
+        return
+    for name in stale:
+        with contextlib.suppress(OSError):
+            os.unlink(name)
 
 
 def require_file(path: str | os.PathLike, what: str = "") -> Path:
@@ -184,6 +223,7 @@ def atomic_path(path: str | os.PathLike, folder: bool = False) -> Iterator[Path]
     kind = special_file(path)
     if kind is not None:
         raise DancesynthError(f"{path} is {kind}; give the path of a file to write instead.")
+    remove_stale_temporaries(path.parent)
     tmp = temporary_sibling(path)
     try:
         yield tmp

@@ -5,6 +5,7 @@ import os
 import re
 import socket
 import stat
+import subprocess
 import threading
 
 import numpy as np
@@ -233,3 +234,22 @@ def test_a_pipe_socket_or_device_is_refused_as_output_and_kept(tmp_path):
     assert not os.path.lexists("/dev/new.mp4")
     for path in (tmp_path / "new.mp4", tmp_path, "/dev/shm/new.mp4"):
         assert special_file(path) is None
+
+
+def test_a_write_removes_temporary_files_of_killed_writers_and_nothing_else(tmp_path):
+    killed = subprocess.Popen(["sleep", "30"])
+    killed.kill()  # SIGKILL: the writer could not delete its temporary file
+    killed.wait()
+    dead, alive = killed.pid, os.getppid()
+    stale = tmp_path / f".dance.{dead}-0123abcd{PART_MARKER}.mp4"
+    kept = [tmp_path / f".dance.{alive}-0123abcd{PART_MARKER}.mp4",  # its writer still runs
+            tmp_path / f".dance.{dead}-not-hex{PART_MARKER}.mp4",  # not a name temporary_sibling makes
+            tmp_path / f"dance.{dead}-0123abcd{PART_MARKER}.mp4",  # not hidden: the user's file
+            tmp_path / f".other.{dead}-0123abcd{PART_MARKER}"]  # a folder
+    for path in [stale, *kept[:3]]:
+        path.write_bytes(b"partial")
+    kept[3].mkdir()
+    with atomic_path(tmp_path / "dance.mp4") as tmp:
+        tmp.write_bytes(b"video")
+    assert not stale.exists() and all(path.exists() for path in kept)
+    assert (tmp_path / "dance.mp4").read_bytes() == b"video"
