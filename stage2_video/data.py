@@ -158,14 +158,20 @@ def check_poses_match(seq: PoseSequence, video: Path) -> PoseSequence:
     return seq
 
 
+def framed_key(framing: VideoFraming, boxes: list[Framing]) -> dict:
+    """What a cache of framed images depends on besides the video: the framing, the frame count and where each
+    frame's box sits (a following box moves with the poses)."""
+    corners = hashlib.sha256(np.array([(f.x0, f.y0) for f in boxes], np.int64).tobytes()).hexdigest()
+    return {"framing": framing.to_dict(), "frames": len(boxes), "boxes": corners}
+
+
 def cache_frames(video: Path, framing: VideoFraming, run_dir: Path, poses: PoseSequence) -> np.ndarray:
     """Framed uint8 frames ``[T, H, W, 3]`` (memory-mapped; frame t framed as ``framing.frames(poses)[t]``),
     decoded once and cached in ``run_dir``; a cache made from another video, framing or poses is rebuilt."""
     path = run_dir / frames_file(framing)
     boxes = framing.frames(poses)
     num_frames = len(boxes)
-    corners = hashlib.sha256(np.array([(f.x0, f.y0) for f in boxes], np.int64).tobytes()).hexdigest()
-    key = _cache_key(video, framing=framing.to_dict(), frames=num_frames, boxes=corners)
+    key = _cache_key(video, **framed_key(framing, boxes))
     if _is_cached(path, key):
         return np.load(path, mmap_mode="r")
     count = 0
@@ -265,9 +271,9 @@ class FramePairs(Dataset):
         target = self.target
         prior = None
         if target.bank is not None:
-            frame = target.frames[t]
+            size = (target.framings[t].out_width, target.framings[t].out_height)
             prior = prior_images(renderer or target.renderer(), target.poses.keypoints[t], target.bank_framings[t],
-                                 target.plate, (frame.shape[1], frame.shape[0]), frame=t)[1]
+                                 target.plate, size, frame=t)[1]
         label = condition(target.poses.keypoints[t], target.framings[t], target.plate, prior)
         return to_tensor(label), to_tensor(target.frames[t])
 

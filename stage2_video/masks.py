@@ -14,7 +14,6 @@ as a uint8 ``.npy`` memory map keyed by the video's content, the framing and the
 
 from __future__ import annotations
 
-import hashlib
 from pathlib import Path
 
 import cv2
@@ -24,7 +23,7 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import read_frames
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX, NECK, ROOT, PoseSequence, body_scale
-from stage2_video.data import cache_file, poses_digest
+from stage2_video.data import cache_file, framed_key, poses_digest
 from stage2_video.extract import native_logs_hidden_unless_info
 from stage2_video.framing import MIN_CONFIDENCE, Framing, VideoFraming
 
@@ -175,7 +174,6 @@ def cache_masks(video: Path, framing: VideoFraming, run_dir: Path, poses: PoseSe
     cached in ``run_dir`` keyed by the video's content, the framing and the poses."""
     path = Path(run_dir) / masks_file(framing)
     boxes = framing.frames(poses)
-    corners = hashlib.sha256(np.array([(f.x0, f.y0) for f in boxes], np.int64).tobytes()).hexdigest()
 
     def write(tmp: Path) -> None:
         reference = body_scale(poses)
@@ -200,5 +198,5 @@ def cache_masks(video: Path, framing: VideoFraming, run_dir: Path, poses: PoseSe
             raise DancesynthError(f"{video} has {count} frames but the poses have {len(poses)}; "
                                   "pass the poses extracted from this video.")
 
-    cache_file(path, Path(video), write, framing=framing.to_dict(), poses=poses_digest(poses), boxes=corners)
+    cache_file(path, Path(video), write, poses=poses_digest(poses), **framed_key(framing, boxes))
     return np.load(path, mmap_mode="r")

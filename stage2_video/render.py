@@ -189,12 +189,12 @@ class AppearanceModel:
         """
         high = torch.from_numpy(np.ascontiguousarray(prior)).to(self.device).permute(2, 0, 1)[None].float()
         base_high, alpha = high[:, :IMAGE_CHANNELS].div(127.5).sub(1.0), high[:, IMAGE_CHANNELS:].div(255.0)
+        base_low = blend_base(to_tensor(cond)[None].to(self.device), True)
         if self.generator is None:
-            low = blend_base(to_tensor(cond)[None].to(self.device), True)
-            frame_high, coverage = base_high, alpha
+            low, frame_high, coverage = base_low, base_high, alpha
         else:
             raw = self.step(cond, previous).to(self.device)
-            low, _ = blend(raw, blend_base(to_tensor(cond)[None].to(self.device), True))
+            low, _ = blend(raw, base_low)
             raw_high = F.interpolate(raw, size=prior.shape[:2], mode="bilinear", align_corners=False)
             frame_high, mask = blend(raw_high, base_high)
             coverage = torch.maximum(alpha, mask)

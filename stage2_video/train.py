@@ -165,7 +165,7 @@ class VideoTrainer:
             g_vgg = self.vgg(fakes, reals) * cfg.lambda_vgg if self.vgg is not None else g_gan.new_zeros(())
             g_l1 = F.l1_loss(fakes.float(), reals) * cfg.lambda_l1
             loss_g = g_gan + g_feat + g_vgg + g_l1
-            if cfg.blend:
+            if cfg.blend and cfg.lambda_mask:
                 target = foreground_target(labels, reals, cfg.prior)
                 g_mask = F.l1_loss(torch.cat([mask_p, mask_c]).float(), target) * cfg.lambda_mask
                 loss_g = loss_g + g_mask
@@ -181,7 +181,7 @@ class VideoTrainer:
         self.scaler.update()
         losses = {"d": loss_d.item(), "g_gan": g_gan.item(), "g_feat": g_feat.item(), "g_vgg": g_vgg.item(),
                   "g_l1": g_l1.item()}
-        return {**losses, "g_mask": g_mask.item()} if cfg.blend else losses
+        return {**losses, "g_mask": g_mask.item()} if cfg.blend and cfg.lambda_mask else losses
 
     # --- loop -----------------------------------------------------------------------------------------------
     def fit(self) -> dict:
