@@ -14,7 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NoReturn
 
-from dancesynth.core.fileio import special_file
+from dancesynth.core.fileio import not_a_folder, special_file
 
 # Counts go to C ints in torch and numpy; nothing a user means is larger.
 MAX_INT = 2**31 - 1
@@ -111,10 +111,13 @@ def output_file(text: str) -> str:
 
 
 def output_folder(text: str) -> str:
-    """A folder to create or write into: not a file, and its nearest existing folder may be written to."""
+    """A folder to create or write into: not a file, a device, a named pipe or a socket, and its nearest existing
+    folder may be written to. (That it neither is nor holds one of the command's inputs is checked by
+    :func:`dancesynth.core.fileio.check_outputs` once all arguments are known.)"""
     path = Path(text).absolute()
-    if path.exists() and not path.is_dir():
-        raise argparse.ArgumentTypeError(f"{text} is a file, not a folder; give a folder path")
+    kind = not_a_folder(path)
+    if kind is not None:
+        raise argparse.ArgumentTypeError(f"{text} is {kind}; give a folder path")
     existing = next(p for p in (path, *path.parents) if p.exists())
     if not existing.is_dir():
         raise argparse.ArgumentTypeError(f"cannot create {text}: {existing} is a file, not a folder")

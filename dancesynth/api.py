@@ -201,9 +201,11 @@ def train_pose(method: str, *, data: PathLike, out: PathLike, preset: str = "sma
     Returns:
         the final checkpoint's metadata (method, epoch, epochs, step, config, ...).
     """
+    from dancesynth.core.fileio import check_outputs
     from stage1_pose.train import TrainerConfig
     from stage1_pose.train import train as train_method
 
+    check_outputs({}, {"dataset": data}, folders={"run folder": out})
     options = TrainerConfig(batch_size=batch_size, window_frames=window, checkpoint_every=checkpoint_every,
                             preview_every=preview_every, preview_gap_minutes=preview_gap, seed=seed,
                             num_workers=workers)
@@ -233,9 +235,12 @@ def train_video(video: PathLike, *, out: PathLike, preset: str = "small", overri
     Returns:
         the last checkpoint's metadata (epoch, step, validation SSIM/PSNR, ...).
     """
+    from dancesynth.core.fileio import check_outputs
     from stage2_video.train import TrainOptions
     from stage2_video.train import train_video as train_appearance
 
+    check_outputs({}, {"target video": video, "pose file": poses, "VGG weights": vgg_weights},
+                  folders={"run folder": out})
     options = TrainOptions(minutes=minutes, epochs=epochs, checkpoint_every=checkpoint_every,
                            sample_every=sample_every, seed=seed)
     return train_appearance(video, out, preset, options, resume=resume, poses=poses, vgg_weights=vgg_weights,

@@ -65,6 +65,9 @@ def read_entry(path: Path) -> CacheEntry | None:
     meta = load_meta(path, KIND)
     with run_file_contents(path / SOURCE_FILE):
         source = json.loads((path / SOURCE_FILE).read_text()) if (path / SOURCE_FILE).is_file() else {}
+    if not isinstance(source, dict):
+        raise DancesynthError(f"{path / SOURCE_FILE} holds a JSON {type(source).__name__}, not an object; it was "
+                              f"edited or damaged, so delete the folder {path} and its model is trained again.")
     with run_file_contents(path / POINTER):
         return CacheEntry(path, source.get("video_sha256", ""), source.get("preset", ""),
                           float(meta.get("trained_seconds", 0.0)), int(meta["epoch"]) >= int(meta["total_epochs"]))

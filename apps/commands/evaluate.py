@@ -56,8 +56,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> None:
+    from dancesynth.core.fileio import check_outputs
     from stage1_pose.evaluate import EvaluationOptions, markdown_table, run_evaluation
 
+    for model in args.models or [None]:
+        check_outputs({}, {"dataset": args.data, "style classifier": args.classifier, "pose model": model},
+                      folders={"report folder": args.out})
     names = ("trials", "seconds", "device", "classifier", "classifier_preset", "tolerance_frames", "video_seconds",
              "grid_video", "beat_snap")
     options = EvaluationOptions(**{k: getattr(args, k) for k in names if getattr(args, k) is not None})

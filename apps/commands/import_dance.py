@@ -55,8 +55,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> None:
     from dancesynth.core.errors import DancesynthError
+    from dancesynth.core.fileio import check_outputs
     from stage1_pose.data import importers
 
+    check_outputs({}, {"OpenPose folder": args.openpose, "AIST++ file": args.aistpp, "song": args.audio},
+                  folders={"dataset folder": args.out})
     if args.openpose:
         missing = [f"--{k}" for k in ("style", "fps", "width", "height") if getattr(args, k) is None]
         if missing:

@@ -45,7 +45,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> None:
     from apps.prepare import prepare_videos
     from dancesynth.core.errors import DancesynthError
+    from dancesynth.core.fileio import check_outputs
 
+    check_outputs({}, {"videos folder": args.videos_dir}, folders={"dataset folder": args.out})
     report = prepare_videos(args.videos_dir, args.out, args.clip_seconds, args.default_style)
     for video, reason in report.skipped.items():
         logger.warning(f"skipped {video}: {reason}")

@@ -6,7 +6,7 @@ import argparse
 import logging
 from pathlib import Path
 
-from apps.arguments import non_negative_int, positive_int
+from apps.arguments import non_negative_int, output_folder, positive_int
 
 NAME = "train-stgcn"
 HELP = "train the ST-GCN style classifier used by the ren method's pose perceptual loss"
@@ -34,7 +34,8 @@ logger = logging.getLogger(__name__)
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--data", type=Path, required=True, help="dataset folder written by make-dataset")
-    parser.add_argument("--out", type=Path, required=True, help="run folder to create (or continue with --resume)")
+    parser.add_argument("--out", type=output_folder, required=True, metavar="RUN_DIR",
+                        help="run folder to create (or continue with --resume)")
     parser.add_argument("--resume", action="store_true",
                         help="continue the run in --out exactly (its preset and seed; --epochs sets a new total)")
     parser.add_argument("--preset", choices=("paper", "small"), default="small",
@@ -45,8 +46,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> None:
+    from dancesynth.core.fileio import check_outputs
     from stage1_pose.models.ren.perceptual import train_stgcn
 
+    check_outputs({}, {"dataset": args.data}, folders={"run folder": args.out})
     result = train_stgcn(args.data, args.out, preset=args.preset, epochs=args.epochs, device=args.device,
                          seed=args.seed, resume=args.resume)
     logger.info(f"ST-GCN trained for {result['epochs']} epochs: train accuracy {result['train_accuracy']:.1%}, "

@@ -43,9 +43,11 @@ def run(args: argparse.Namespace) -> None:
 
     from dancesynth.core.config import config_from_dict
     from dancesynth.core.device import resolve_device
+    from dancesynth.core.fileio import check_outputs
     from dancesynth.core.runs import RunFolder
     from stage1_pose.style_classifier import KIND, PRESETS, StyleClassifierConfig, train_on_dataset
 
+    check_outputs({}, {"dataset": args.data}, folders={"run folder": args.out})
     device = resolve_device(args.device)
     run_folder = RunFolder(args.out, KIND, device, resume=args.resume)
     meta = run_folder.meta

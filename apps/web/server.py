@@ -17,7 +17,8 @@ running job uses them or a cached model names them as its video (continuing its 
 
 Every error answers ``{"error": sentence}``: bad input status 400 (413 for an upload over the size limit or a job
 request over :data:`JOB_BYTES`), with the :class:`~dancesynth.core.errors.DancesynthError` sentence the CLI would
-print; every field of a job request is checked for its type first. Bodies are bounded while they arrive: an upload
+print; every field of a job request is checked for its type first, and a field its kind has not
+(:data:`JOB_FIELDS`) is refused rather than ignored. Bodies are bounded while they arrive: an upload
 is written into its folder as it streams and stopped at the limit (:mod:`apps.web.uploads`), a job request is
 read up to :data:`JOB_BYTES` and its JSON nesting checked before it is parsed. A cached model that cannot be read
 is listed with the sentence saying why (``damaged``), beside the others.
@@ -95,6 +96,12 @@ JSON_DEPTH = 8
 TEXT_FIELDS = {"kind": "job kind", "song": "song", "video": "video", "model": "appearance model",
                "pose_model": "pose model", "preset": "preset"}
 TEXT_CHARS = 200
+# The fields of each kind of job request: what the page sends (static/app.js), and a dance's preset besides.
+JOB_FIELDS = {"dance": ("kind", "song", "start", "duration", "seed", "pose_model", "model", "video", "minutes",
+                        "preset"),
+              "train": ("kind", "model", "video", "minutes", "preset"),
+              "preview": ("kind", "video"),
+              "demo": ("kind", "minutes")}
 LOSSES = "losses.csv"
 LOSS_ROWS = 500  # the page's loss plot needs no more
 # What GET /api/models tells of each cached model.
@@ -609,6 +616,11 @@ class WebApp:
         """Check a job request (one sentence for what is wrong) and queue it."""
         _check_types(body)
         kind = body.get("kind")
+        fields = JOB_FIELDS.get(kind, ())
+        unknown = next((key for key in body if fields and key not in fields), None)
+        if unknown is not None:
+            raise DancesynthError(f"Unknown field {_shown(unknown)} in a {kind} job request; send only its fields "
+                                  f"({', '.join(fields)}), as the page does.")
         with _no_error_paths(self.data), self._uploads_lock:
             if kind == "dance":
                 return self._dance_job(body)

@@ -3,7 +3,8 @@
 A worker logs into the job's ``log.txt`` (its stdout and stderr too, so native libraries' messages land there)
 with progress lines every :data:`PROGRESS_INTERVAL_S`, and writes ``result.json``: ``{"outputs": {name: path
 relative to the data folder}, "info": {...}}`` or ``{"error": sentence}``. SIGTERM (cancel) stops it like Ctrl-C,
-so files being written under temporary names are removed. Heavy modules are imported in the worker only.
+so files being written under temporary names are removed; a worker whose server is gone (even killed before the
+worker started) stops itself the same way. Heavy modules are imported in the worker only.
 """
 
 from __future__ import annotations
@@ -11,11 +12,11 @@ from __future__ import annotations
 import itertools
 import json
 import logging
+import multiprocessing
 import os
 import signal
 import sys
 import threading
-import time
 import traceback
 from collections.abc import Callable
 from pathlib import Path
@@ -116,10 +117,10 @@ def _terminated(signum: int, frame: object) -> None:
     raise KeyboardInterrupt  # cancel cleans up (temporary files deleted) exactly like Ctrl-C
 
 
-def _exit_with_parent(parent: int) -> None:
-    """End this worker (as a cancel would) when the server that started it is gone."""
-    while os.getppid() == parent:
-        time.sleep(1.0)
+def _exit_with_parent() -> None:
+    """End this worker (as a cancel would) when the server that started it is gone, even when it went before
+    this worker got here: the end of multiprocessing's pipe from the parent closes however the parent ends."""
+    multiprocessing.parent_process().join()
     os.kill(os.getpid(), signal.SIGTERM)
 
 
@@ -132,7 +133,6 @@ def run_job(job_dir: str, settings: dict) -> None:
 
     folder = Path(job_dir)
     signal.signal(signal.SIGTERM, _terminated)
-    threading.Thread(target=_exit_with_parent, args=(os.getppid(),), daemon=True).start()
     log = open(folder / LOG_FILE, "a", buffering=1)
     os.dup2(log.fileno(), 1)
     os.dup2(log.fileno(), 2)
@@ -142,6 +142,8 @@ def run_job(job_dir: str, settings: dict) -> None:
     job = json.loads((folder / JOB_FILE).read_text())
     data = Path(settings["data"])
     try:
+        # Watched from here on: a server gone already ends the job at once, as a cancel, with its log line.
+        threading.Thread(target=_exit_with_parent, daemon=True).start()
         outputs, info = TASKS[job["kind"]](job["params"], folder / OUT, settings)
         result: dict = {"outputs": outputs, "info": info}
     except KeyboardInterrupt:

@@ -78,22 +78,48 @@ def require_file(path: str | os.PathLike, what: str = "") -> Path:
     return path
 
 
-def special_file(path: str | os.PathLike) -> str | None:
-    """Why writing a file at ``path`` would replace something that is not a file, as the end of the sentence
-    "``path`` is ...": an existing device, named pipe or socket (links followed), or any name in ``/dev`` (not
-    its subfolders), ``/proc`` or ``/sys``; None for a regular file, a folder or a new name elsewhere."""
+def _mode(path: str | os.PathLike) -> int:
+    """The file type and permission bits of ``path`` (links followed); 0 when nothing is there."""
     try:
-        mode = os.stat(path).st_mode
+        return os.stat(path).st_mode
     except OSError:
-        mode = 0
+        return 0
+
+
+def _special_kind(mode: int) -> str | None:
+    """"a device", "a named pipe" or "a socket" for a ``mode`` of that type, None for any other."""
     for test, kind in ((stat.S_ISCHR, "a device"), (stat.S_ISBLK, "a device"), (stat.S_ISFIFO, "a named pipe"),
                        (stat.S_ISSOCK, "a socket")):
         if test(mode):
-            return f"{kind}, not a regular file"
+            return kind
+    return None
+
+
+def _system_folder(path: str | os.PathLike) -> str | None:
+    """The end of the sentence "``path`` is ..." when ``path`` is a name in ``/dev`` (not its subfolders),
+    ``/proc`` or ``/sys``; None elsewhere."""
     folder = _entry(path).parent
     system = next((f for f in SYSTEM_FOLDERS if folder.is_relative_to(f)), DEVICE_FOLDER if folder == DEVICE_FOLDER
                   else None)
     return f"in {system}, a folder of the system's devices and processes" if system is not None else None
+
+
+def special_file(path: str | os.PathLike) -> str | None:
+    """Why writing a file at ``path`` would replace something that is not a file, as the end of the sentence
+    "``path`` is ...": an existing device, named pipe or socket (links followed), or any name in ``/dev`` (not
+    its subfolders), ``/proc`` or ``/sys``; None for a regular file, a folder or a new name elsewhere."""
+    kind = _special_kind(_mode(path))
+    return f"{kind}, not a regular file" if kind is not None else _system_folder(path)
+
+
+def not_a_folder(path: str | os.PathLike) -> str | None:
+    """Why ``path`` cannot be a folder to write into, as the end of the sentence "``path`` is ...": an existing
+    file, device, named pipe or socket (links followed), or a name in ``/dev``, ``/proc`` or ``/sys`` (see
+    :func:`special_file`); None for a folder or a new name elsewhere."""
+    mode = _mode(path)
+    if mode and not stat.S_ISDIR(mode):
+        return f"{_special_kind(mode) or 'a file'}, not a folder"
+    return _system_folder(path)
 
 
 def _entry(path: str | os.PathLike) -> Path:
@@ -114,15 +140,22 @@ def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
 
 
 def check_outputs(outputs: Mapping[str, str | os.PathLike | None],
-                  inputs: Mapping[str, str | os.PathLike | None] | None = None) -> None:
+                  inputs: Mapping[str, str | os.PathLike | None] | None = None,
+                  folders: Mapping[str, str | os.PathLike | None] | None = None) -> None:
     """Refuse, before any work, outputs that would destroy what the command reads, each other or a device.
 
-    ``outputs`` and ``inputs`` map what each path is (e.g. ``"dance video"``, ``"song"``) to the path (None: not
-    given). A :class:`DancesynthError` names the output when it is an input file or folder, an existing file
-    inside an input folder, another output, or not a place for a file (:func:`special_file`).
+    ``outputs`` (files), ``inputs`` and ``folders`` (output folders: run folders, datasets, reports) map what each
+    path is (e.g. ``"dance video"``, ``"song"``, ``"run folder"``) to the path (None: not given). A
+    :class:`DancesynthError` names the output file when it is an input file or folder, an existing file inside an
+    input folder, another output, or not a place for a file (:func:`special_file`); it names the output folder
+    when it is an input, holds one, or is no folder (:func:`not_a_folder`). An existing folder is accepted as it
+    is: a run folder is resumed in place.
     """
     given = {what: path for what, path in outputs.items() if path is not None}
     sources = {what: path for what, path in (inputs or {}).items() if path is not None}
+    for what, folder in (folders or {}).items():
+        if folder is not None:
+            _check_output_folder(what, folder, sources)
     for index, (what, path) in enumerate(given.items()):
         kind = special_file(path)
         if kind is not None:
@@ -141,6 +174,24 @@ def check_outputs(outputs: Mapping[str, str | os.PathLike | None],
             if _same_file(path, other):
                 raise DancesynthError(f"The {what} {path} is also the {other_what} {other}; give each output its "
                                       "own path.")
+
+
+def _check_output_folder(what: str, folder: str | os.PathLike,
+                         sources: Mapping[str, str | os.PathLike]) -> None:
+    """Refuse the output folder ``folder`` (see :func:`check_outputs`) when it is no folder, is one of ``sources``
+    or holds one: its writes would mix with, or replace, what the command reads."""
+    kind = not_a_folder(folder)
+    if kind is not None:
+        raise DancesynthError(f"The {what} {folder} is {kind}; give the path of a folder to write into instead.")
+    for source_what, source in sources.items():
+        if _same_file(folder, source):
+            relation = "is the"
+        elif Path(os.path.realpath(source)).is_relative_to(os.path.realpath(folder)):
+            relation = "holds the"
+        else:
+            continue
+        raise DancesynthError(f"The {what} {folder} {relation} {source_what} {source}; choose another output folder "
+                              f"so that the {source_what} is not overwritten.")
 
 
 def os_error_sentence(error: OSError, path: str | os.PathLike | None = None) -> str:

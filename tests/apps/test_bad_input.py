@@ -323,11 +323,35 @@ OVERWRITES = [  # an output that is an input, another output or not a file; {in}
     (["extract-poses", "{in}/video.mp4", "--out", "{out}/p.npz", "--preview", "{in}/fifo"], "is a named pipe"),
     (["check", "{stage1}", "--json", "{stage1}/latest.json"], "is a file of the pose model"),
 ]
+FOLDER_OVERWRITES = [  # an output folder that is an input of its command, holds one, or is no folder
+    (["train-pose", "--method", "lstm", "--data", "{data}", "--out", "{data}", "--epochs", "1"],
+     "The run folder {data} is the dataset {data}; choose another output folder so that the dataset is not "
+     "overwritten."),
+    (["train-pose", "--method", "lstm", "--data", "{data}", "--out", "{data}/..", "--epochs", "1"],
+     "The run folder {data}/.. holds the dataset {data}; choose another output folder"),
+    (["train-pose", "--method", "lstm", "--data", "{data}", "--out", "{in}/fifo"], "{in}/fifo is a named pipe, not a "
+                                                                                  "folder; give a folder path"),
+    (["make-dataset", "--out", "{in}/fifo"], "is a named pipe, not a folder"),
+    (["make-dataset", "--out", "/dev/null"], "/dev/null is a device, not a folder"),
+    (["train-video", "{in}/video.mp4", "--out", "{in}", "--epochs", "1"],
+     "The run folder {in} holds the target video {in}/video.mp4"),
+    (["prepare", "{in}/videos", "--out", "{in}/videos"], "The dataset folder {in}/videos is the videos folder"),
+    (["prepare", "{in}/videos", "--out", "{in}"], "The dataset folder {in} holds the videos folder {in}/videos"),
+    (["import-dance", "--out", "{in}", "--aistpp", "{in}/gPO_x.npy", "--audio", "{in}/song.wav"],
+     "The dataset folder {in} holds the AIST++ file {in}/gPO_x.npy"),
+    (["evaluate", "--data", "{data}", "--models", "{stage1}", "--out", "{stage1}"],
+     "The report folder {stage1} is the pose model {stage1}"),
+    (["evaluate", "--data", "{data}", "--out", "{data}"], "The report folder {data} is the dataset"),
+    (["train-stgcn", "--data", "{data}", "--out", "{data}"], "The run folder {data} is the dataset"),
+    (["train-stgcn", "--data", "{data}", "--out", "{in}/a_file.txt"], "is a file, not a folder"),
+    (["train-style-classifier", "--data", "{data}", "--out", "{data}"], "The run folder {data} is the dataset"),
+]
 CATALOGUE = {"out_of_range": OUT_OF_RANGE, "folder_for_file": FOLDER_FOR_FILE, "file_for_folder": FILE_FOR_FOLDER,
              "missing_or_unreadable": MISSING_OR_UNREADABLE, "bad_dataset": BAD_DATASETS,
              "wrong_run": WRONG_RUNS + MORE_WRONG_RUNS, "bad_audio": BAD_AUDIO, "song_segment": SONG_SEGMENT,
              "bad_pose_file": BAD_POSE_FILES, "training_state": TRAINING_STATE, "edited_latest_json": EDITED_META,
-             "unwritable_output": UNWRITABLE, "output_overwrites": OVERWRITES}
+             "unwritable_output": UNWRITABLE, "output_overwrites": OVERWRITES,
+             "output_folder_overwrites": FOLDER_OVERWRITES}
 CASES = [(name, argv, says) for name, cases in CATALOGUE.items() for argv, says in cases]
 
 

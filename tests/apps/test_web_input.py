@@ -156,6 +156,21 @@ def test_a_job_request_with_a_field_of_the_wrong_type_is_a_sentence(app, body, s
     assert app.state.web.jobs.jobs() == []
 
 
+@pytest.mark.parametrize("body, field", [
+    ({"kind": "demo", "minutes": 2, "seed": 3}, "'seed'"),
+    ({"kind": "preview", "video": "a" * 12, "minutes": 2}, "'minutes'"),
+    ({"kind": "train", "video": "a" * 12, "command": "touch pwned"}, "'command'"),
+    ({"kind": "dance", "song": "builtin:x", "out": "/etc/passwd"}, "'out'"),
+])
+def test_a_job_request_with_a_field_its_kind_has_not_is_refused(app, body, field):
+    status, answer, _ = call(app, "POST", "/api/jobs", JSON, json.dumps(body).encode())
+    fields = {"demo": "kind, minutes", "preview": "kind, video", "train": "kind, model, video, minutes, preset",
+              "dance": "kind, song, start, duration, seed, pose_model, model, video, minutes, preset"}[body["kind"]]
+    assert status == 400 and answer == {"error": f"Unknown field {field} in a {body['kind']} job request; send only "
+                                                 f"its fields ({fields}), as the page does."}
+    assert app.state.web.jobs.jobs() == []
+
+
 def test_numbers_come_as_json_numbers_or_as_the_pages_decimal_text(app):
     for minutes in (2, 2.5, "2", " 2.5 ", "3e0"):
         status, job, _ = call(app, "POST", "/api/jobs", JSON, json.dumps({"kind": "demo", "minutes": minutes}).encode())
@@ -188,7 +203,8 @@ def _entry(cache: Path, name: str, source: object = None, losses: str | None = N
 
 @pytest.mark.parametrize("damage, says", [
     ({"source": {"video": 5}}, "source.json holds {'video': 5}, not the path of a video"),
-    ({"source": ["a", "list"]}, "it was edited or damaged"),
+    ({"source": ["a", "list"]}, "source.json holds a JSON list, not an object; it was edited or damaged, so delete "
+                                "the folder"),
     ({"losses": "step,loss_g\n1,2.5\n2,abc\n"}, "losses.csv is damaged"),
     ({"losses": "step,loss_g\n1,2.5,7\n"}, "losses.csv is damaged"),
 ])

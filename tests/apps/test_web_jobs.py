@@ -1,10 +1,14 @@
 """The web app's job store across a server restart, one server per data folder, and its upload retention (no
-browser, no worker)."""
+browser; the last tests run real `dancesynth serve` processes and a job's worker)."""
 
+import http.client
 import json
 import os
 import shlex
+import signal
 import socket
+import subprocess
+import sys
 import time
 from pathlib import Path
 
@@ -198,3 +202,118 @@ def test_serve_on_a_port_it_cannot_have_exits_1_with_a_sentence_before_touching_
     err = capsys.readouterr().err
     assert says.format(taken=port, free=free) in err and err.count("\n") == 1 and "Traceback" not in err
     assert not data.exists()
+
+
+# --- real servers -------------------------------------------------------------------------------------------------
+REPO = Path(__file__).parents[2]
+SERVER_START_S = 60.0
+WORKER_EXIT_S = 5.0  # a worker follows its server within a second, then cleans up as on Ctrl-C
+
+
+def _request(port: int, method: str, path: str, body: dict | None = None) -> tuple[int, dict | list]:
+    """(status, JSON answer) of a request of the page to the server at ``port`` (a body goes as JSON)."""
+    page = f"127.0.0.1:{port}"
+    headers = {"Host": page, "Origin": f"http://{page}", **({"Content-Type": "application/json"} if body else {})}
+    connection = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+    try:
+        connection.request(method, path, body=json.dumps(body).encode() if body else None, headers=headers)
+        response = connection.getresponse()
+        return response.status, json.loads(response.read())
+    finally:
+        connection.close()
+
+
+def _serve(data: Path, port: int, log: Path) -> subprocess.Popen:
+    """`dancesynth serve` on ``data`` at ``port`` (its stderr in ``log``: a worker shares it until it has its own)."""
+    with open(log, "a") as err:
+        return subprocess.Popen([sys.executable, "-m", "apps.cli", "serve", "--data", str(data), "--cache",
+                                 str(data.parent / "cache"), "--port", str(port), "--device", "cpu"], cwd=REPO,
+                                stdout=subprocess.DEVNULL, stderr=err, env={**os.environ, "OMP_NUM_THREADS": "1"})
+
+
+def _started(server: subprocess.Popen, port: int) -> None:
+    """Wait for the server to list its jobs (which, unlike the cache, does not wait for torch to load)."""
+    deadline = time.monotonic() + SERVER_START_S
+    while time.monotonic() < deadline and server.poll() is None:
+        try:
+            if _request(port, "GET", "/api/jobs")[0] == 200:
+                return
+        except OSError:
+            time.sleep(0.05)
+    pytest.fail(f"the server did not start (exit status {server.poll()})")
+
+
+def _running_demo(port: int) -> dict:
+    """A demo job the server at ``port`` has just started running (its worker starting)."""
+    status, job = _request(port, "POST", "/api/jobs", {"kind": "demo", "minutes": 2})
+    assert status == 200, job
+    deadline = time.monotonic() + 30
+    while job["state"] == "queued" and time.monotonic() < deadline:
+        job = _request(port, "GET", f"/api/jobs/{job['id']}")[1]
+    assert job["state"] == "running", job
+    return job
+
+
+def _process_running(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie, ended but not yet reaped by its new parent, does not)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (OSError, IndexError):
+        return False
+
+
+def _stop(server: subprocess.Popen) -> None:
+    """Stop the server as Ctrl-C does."""
+    if server.poll() is None:
+        server.send_signal(signal.SIGINT)
+    try:
+        server.wait(30)
+    finally:
+        server.kill()
+
+
+def test_a_second_serve_while_the_first_runs_a_job_exits_1_and_changes_nothing(tmp_path):
+    data, port, log = tmp_path / "data", _free_port(), tmp_path / "server.log"
+    first = _serve(data, port, log)
+    try:
+        _started(first, port)
+        job = _running_demo(port)
+        others = {k: v for k, v in _snapshot(data).items() if not k.startswith(f"jobs/{job['id']}/")}
+        second = subprocess.run([sys.executable, "-m", "apps.cli", "serve", "--data", str(data), "--port",
+                                 str(_free_port())], cwd=REPO, capture_output=True, text=True, timeout=60)
+        assert second.returncode == 1 and second.stderr == (
+            f"dancesynth serve: error: Another dancesynth server (process {first.pid}) is using the data folder "
+            f"{data}; stop it first, or give this one another --data.\n")
+        assert {k: v for k, v in _snapshot(data).items() if not k.startswith(f"jobs/{job['id']}/")} == others
+        assert _request(port, "GET", f"/api/jobs/{job['id']}")[1]["state"] == "running"
+    finally:
+        _stop(first)
+    assert json.loads((data / "jobs" / job["id"] / "job.json").read_text())["state"] == "interrupted"
+
+
+def test_a_server_killed_as_its_job_starts_takes_the_worker_with_it_and_a_restart_marks_the_job_interrupted(
+        tmp_path):
+    data, port, log = tmp_path / "data", _free_port(), tmp_path / "server.log"
+    server = _serve(data, port, log)
+    try:
+        _started(server, port)
+        job = _running_demo(port)  # its worker may not have started yet: it must still follow its server
+        server.send_signal(signal.SIGKILL)
+        server.wait()
+    finally:
+        server.kill()
+    deadline = time.monotonic() + WORKER_EXIT_S
+    while _process_running(job["pid"]) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert not _process_running(job["pid"]), "the job's worker ran on without its server"
+    restarted = _serve(data, port, log)
+    try:
+        _started(restarted, port)
+        seen = _request(port, "GET", f"/api/jobs/{job['id']}")[1]
+        assert seen["state"] == "interrupted" and seen["error"] == ("The server stopped while this job ran; start "
+                                                                    "it again.")
+    finally:
+        _stop(restarted)
+    assert not (data / "jobs" / job["id"] / "out").exists()
+    assert [p for p in data.rglob("*") if ".part" in p.name] == []
+    assert "Traceback" not in log.read_text()

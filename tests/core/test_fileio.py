@@ -11,12 +11,13 @@ import threading
 import numpy as np
 import pytest
 
-from apps.arguments import output_file
+from apps.arguments import output_file, output_folder
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import (
     PART_MARKER,
     atomic_path,
     check_outputs,
+    not_a_folder,
     os_error_sentence,
     require_file,
     special_file,
@@ -234,6 +235,48 @@ def test_a_pipe_socket_or_device_is_refused_as_output_and_kept(tmp_path):
     assert not os.path.lexists("/dev/new.mp4")
     for path in (tmp_path / "new.mp4", tmp_path, "/dev/shm/new.mp4"):
         assert special_file(path) is None
+
+
+def test_an_output_folder_that_is_no_folder_is_refused_and_kept(tmp_path):
+    fifo, server = _kinds(tmp_path)
+    (tmp_path / "notes.txt").write_text("mine")
+    with server:
+        for path, kind in ((tmp_path / "notes.txt", "a file"), (fifo, "a named pipe"), (tmp_path / "sock", "a socket"),
+                           ("/dev/null", "a device"), ("/proc/runs", "in /proc")):
+            assert not_a_folder(path).startswith(kind)
+            with pytest.raises(DancesynthError, match=re.escape(f"The run folder {path} is {kind}")):
+                check_outputs({}, folders={"run folder": path})
+            with pytest.raises(argparse.ArgumentTypeError, match=re.escape(f"{path} is {kind}")):
+                output_folder(str(path))
+    assert (tmp_path / "notes.txt").read_text() == "mine" and stat.S_ISFIFO(os.stat(fifo).st_mode)
+    assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
+
+
+def test_an_output_folder_that_is_or_holds_an_input_is_refused(tmp_path, monkeypatch):
+    data = tmp_path / "data"
+    (data / "audio").mkdir(parents=True)
+    (tmp_path / "data_link").symlink_to(data)
+    video = tmp_path / "videos" / "me.mp4"
+    video.parent.mkdir()
+    video.write_bytes(b"video")
+    monkeypatch.chdir(tmp_path)
+    for out in (data, "data", "./videos/../data", tmp_path / "data_link"):
+        with pytest.raises(DancesynthError, match=re.escape(
+                f"The run folder {out} is the dataset {data}; choose another output folder so that the dataset is "
+                "not overwritten.")):
+            check_outputs({}, {"dataset": data}, folders={"run folder": out})
+    for out, source in ((tmp_path, data), (".", "data"), (tmp_path / "videos", video)):
+        with pytest.raises(DancesynthError, match=re.escape(f"The run folder {out} holds the input {source}; ")):
+            check_outputs({}, {"input": source}, folders={"run folder": out})
+
+
+def test_an_output_folder_beside_or_inside_its_inputs_or_existing_is_accepted(tmp_path):
+    data, run = tmp_path / "data", tmp_path / "runs" / "lstm"
+    run.mkdir(parents=True)
+    (run / "latest.json").write_text("{}")  # a run resumed in place
+    data.mkdir()
+    for out in (run, tmp_path / "runs" / "new", data / "run", tmp_path / "data_and_more", None):
+        check_outputs({}, {"dataset": data, "config": None}, folders={"run folder": out})
 
 
 def test_a_write_removes_temporary_files_of_killed_writers_and_nothing_else(tmp_path):

@@ -1,5 +1,6 @@
 """The appearance-model cache: an interrupted training leaves an entry that resumes, and only for its own video."""
 
+import json
 import multiprocessing
 import os
 import shutil
@@ -85,3 +86,14 @@ def test_a_damaged_cache_entry_says_to_delete_its_folder(tiny_target, tmp_path):
         read_entry(entry)
     assert f"if {entry} is a model that `dance --target` cached, delete that folder so it is trained again" in (
         str(raised.value))
+
+
+def test_a_cache_entry_whose_source_json_is_no_object_names_that_file(tmp_path):
+    entry = tmp_path / "cache" / f"{'0' * 24}-small"
+    entry.mkdir(parents=True)
+    (entry / "latest.json").write_text(json.dumps({"kind": "stage2", "epoch": 1, "total_epochs": 4}))
+    (entry / "source.json").write_text(json.dumps(["a", "list"]))
+    with pytest.raises(DancesynthError) as raised:
+        read_entry(entry)
+    assert str(raised.value) == (f"{entry}/source.json holds a JSON list, not an object; it was edited or damaged, so "
+                                 f"delete the folder {entry} and its model is trained again.")
