@@ -148,7 +148,7 @@ def check_outputs(outputs: Mapping[str, str | os.PathLike | None],
     path is (e.g. ``"dance video"``, ``"song"``, ``"run folder"``) to the path (None: not given). A
     :class:`DancesynthError` names the output file when it is an input file or folder, an existing file inside an
     input folder, another output, or not a place for a file (:func:`special_file`); it names the output folder
-    when it is an input, holds one, or is no folder (:func:`not_a_folder`). An existing folder is accepted as it
+    when it is an input, holds an input folder, or is no folder (:func:`not_a_folder`). An existing folder is accepted as it
     is: a run folder is resumed in place.
     """
     given = {what: path for what, path in outputs.items() if path is not None}
@@ -179,14 +179,15 @@ def check_outputs(outputs: Mapping[str, str | os.PathLike | None],
 def _check_output_folder(what: str, folder: str | os.PathLike,
                          sources: Mapping[str, str | os.PathLike]) -> None:
     """Refuse the output folder ``folder`` (see :func:`check_outputs`) when it is no folder, is one of ``sources``
-    or holds one: its writes would mix with, or replace, what the command reads."""
+    or holds an input folder: its writes would mix with, or replace, what the command reads. An input file inside
+    it is fine (e.g. ``--poses RUN/poses.npz --out RUN``): the command writes its own names."""
     kind = not_a_folder(folder)
     if kind is not None:
         raise DancesynthError(f"The {what} {folder} is {kind}; give the path of a folder to write into instead.")
     for source_what, source in sources.items():
         if _same_file(folder, source):
             relation = "is the"
-        elif Path(os.path.realpath(source)).is_relative_to(os.path.realpath(folder)):
+        elif os.path.isdir(source) and Path(os.path.realpath(source)).is_relative_to(os.path.realpath(folder)):
             relation = "holds the"
         else:
             continue

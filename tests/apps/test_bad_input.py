@@ -323,7 +323,7 @@ OVERWRITES = [  # an output that is an input, another output or not a file; {in}
     (["extract-poses", "{in}/video.mp4", "--out", "{out}/p.npz", "--preview", "{in}/fifo"], "is a named pipe"),
     (["check", "{stage1}", "--json", "{stage1}/latest.json"], "is a file of the pose model"),
 ]
-FOLDER_OVERWRITES = [  # an output folder that is an input of its command, holds one, or is no folder
+FOLDER_OVERWRITES = [  # an output folder that is an input of its command, holds an input folder, or is no folder
     (["train-pose", "--method", "lstm", "--data", "{data}", "--out", "{data}", "--epochs", "1"],
      "The run folder {data} is the dataset {data}; choose another output folder so that the dataset is not "
      "overwritten."),
@@ -333,12 +333,8 @@ FOLDER_OVERWRITES = [  # an output folder that is an input of its command, holds
                                                                                   "folder; give a folder path"),
     (["make-dataset", "--out", "{in}/fifo"], "is a named pipe, not a folder"),
     (["make-dataset", "--out", "/dev/null"], "/dev/null is a device, not a folder"),
-    (["train-video", "{in}/video.mp4", "--out", "{in}", "--epochs", "1"],
-     "The run folder {in} holds the target video {in}/video.mp4"),
     (["prepare", "{in}/videos", "--out", "{in}/videos"], "The dataset folder {in}/videos is the videos folder"),
     (["prepare", "{in}/videos", "--out", "{in}"], "The dataset folder {in} holds the videos folder {in}/videos"),
-    (["import-dance", "--out", "{in}", "--aistpp", "{in}/gPO_x.npy", "--audio", "{in}/song.wav"],
-     "The dataset folder {in} holds the AIST++ file {in}/gPO_x.npy"),
     (["evaluate", "--data", "{data}", "--models", "{stage1}", "--out", "{stage1}"],
      "The report folder {stage1} is the pose model {stage1}"),
     (["evaluate", "--data", "{data}", "--out", "{data}"], "The report folder {data} is the dataset"),
