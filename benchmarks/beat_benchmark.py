@@ -1,47 +1,78 @@
-"""Real-music beat benchmark: recorded songs and human-composed MIDI pieces with known beat grids.
+"""Beat benchmark that cannot be tuned to: recorded songs and rendered scores with known beat and bar grids,
+tagged by kind, in a fixed dev / test split.
 
-    .venv/bin/pip install -e ".[bench]"; apt-get install fluidsynth fluid-soundfont-gm   # once, as root
+    .venv/bin/pip install -e ".[bench]"; apt-get install fluidsynth fluid-soundfont-gm musescore3   # once, as root
     .venv/bin/python benchmarks/beat_benchmark.py fetch   # downloads Debian packages, renders, writes ground truth
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/beat_benchmark.py run     # per-song and per-genre scores
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/beat_benchmark.py run --split dev    # every choice is made here
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/beat_benchmark.py run --split test   # once per change, reported
 
 ``fetch`` runs ``apt-get download`` (after ``apt-get update``) and ``dpkg-deb -x`` into the cache
 (``--cache``, default ``~/.cache/dancesynth/beat-benchmark``), then writes for every piece ``audio/<id>.flac``
-(mono 22050 Hz, at most ``MAX_SECONDS``) and ``audio/<id>.json`` (true beats in seconds, tempo, source package,
-file, licence and the path of the package's copyright file, copied into ``licences/``). Nothing is committed.
+(mono 22050 Hz, at most ``MAX_SECONDS``) and ``audio/<id>.json`` (true beats and downbeats in seconds, beats per
+bar, tempo, kinds, source package, file, licence and the path of the package's copyright file, copied into
+``licences/``). Nothing is committed.
 
-Ground truth (quarter-note beats; every piece is in an x/4 metre):
+Sources (Debian packages; licences per file in ``PIECES``):
 
-* MIDI pieces (OpenTTD's OpenMSX set, GPL-2.0; MMA's example songs, GPL-2.0+) are rendered with
-  ``fluidsynth -ni -g 0.3 -r 44100 -F out.wav FluidR3_GM.sf2 piece.mid``; fluidsynth renders MIDI time 0 at audio
-  time 0, so the beats are exact: the tempo map (``mido``) turns every quarter-note tick into seconds.
-* Frets-on-Fire songs (Muldjord: CC-BY-SA-3.0; Sectoid: MIT) ship ``notes.mid``, the game's chart, whose tempo map
-  is the grid the chart was written on; the game plays ``song.ogg`` from chart time 0 (no ``delay`` in
-  ``song.ini``), but charts are placed by ear, so the grid's phase is measured: the expert chart's note times are
-  slid over the guitar stem's onset envelope (``guitar.ogg``, 1.45 ms hop) from -300 to +300 ms in 2 ms steps and
-  the offset with the highest mean onset strength wins. Onset envelopes peak a little after the physical onset
-  (window and attack), so the same search on the rendered MIDI pieces (true offset 0) measures that lag, and its
-  median is subtracted. The listening-free checks, printed by ``fetch`` and stored per song: the peak's height
-  over the median score across offsets and its half-height width; a sharp, single peak means the chart's notes
-  line up with the recording at one offset only.
+* MIDI files rendered with ``fluidsynth -ni -g 0.3 -r 44100 -F out.wav FluidR3_GM.sf2 piece.mid``: OpenTTD's
+  OpenMSX music set (game music, GPL-2.0) and MMA's example songs (GPL-2.0+).
+* MMA's groove library (GPL-2.0+): a song of chords (``_MMA_CHORDS``, one a bar, about ``_MMA_SECONDS`` long) in one
+  groove at a chosen tempo, written to MIDI by MMA itself (``mma -f out.mid song.mma``, random timing seeded), then
+  rendered like the MIDI files. This gives the kinds no packaged song has at the tempo wanted (a waltz at 160, rock
+  at 160, hip-hop at 87, electronic, pop).
+* MuseScore 3's demo scores (``musescore3-common``; CC-BY-3.0 and CC-BY-SA-4.0 per file), exported to MIDI with
+  ``mscore3 -o out.mid score.mscx`` (``QT_QPA_PLATFORM=offscreen``), then rendered like the MIDI files.
+* Frets-on-Fire songs (Muldjord: CC-BY-SA-3.0; Sectoid: MIT): recordings with the game's chart ``notes.mid``.
+
+Ground truth. Rendered pieces are exact: fluidsynth renders MIDI time 0 at audio time 0 and the tempo map
+(``mido``) turns every grid tick into seconds. The beat is the one people count and dancers step to: the quarter
+note in x/4, the half note in x/2, and in compound metres (6/8, 9/8, 12/8) the dotted quarter, so 6/8 has two
+beats a bar. Bars come from the MIDI time signatures (a bar line at each time signature and every bar length after
+it; a first bar shorter than the next is a pickup: its beats are counted back from the first full bar and it has
+no downbeat). MMA writes its time signatures loosely (its 6/8 grooves count eighths or dotted quarters as MIDI
+quarters), so MMA pieces state their grid: MIDI quarters per beat and beats per bar. Frets-on-Fire songs: the chart's
+tempo map and bars (4/4 from chart time 0 where it has no time signature) are the grid, but charts are placed by
+ear, so the grid's phase is measured: the expert chart's note times are slid over the guitar stem's onset envelope
+(``guitar.ogg``, 1.45 ms hop) from -300 to +300 ms in 2 ms steps and the offset with the highest mean onset strength
+wins. Onset envelopes peak a little after the physical onset (window and attack), so the same search on the rendered
+pieces (true offset 0) measures that lag, and its median is subtracted. The listening-free checks, printed by
+``fetch`` and stored per song: the peak's height over the median score across offsets and its half-height width.
+Their downbeats rest on the chart author's bar lines, which nothing here checks.
+
+Kinds (a piece has one or more; the first is its main kind): swing (swing or shuffle), triple (3/4 or 6/8),
+fast (beats at 150 BPM or more), slow (80 BPM or less), hip-hop, electronic, rock-metal, latin, classical, jazz,
+pop, soundtrack (game music of no other kind). Style kinds come from the package, the groove's or the score's
+name, swing also from where the MIDI's off-beat notes fall; ``fetch`` refuses a piece whose fast / slow tags
+disagree with its true median tempo.
+
+Split (``SPLIT``), drawn once before any tracker ran on the new pieces and kept as a table, so that pieces added
+later leave it as it is: within each main kind, the first benchmark's 20 pieces (the project's tracker was tuned on
+them) go to dev, the others in the order of the SHA-1 of their id; dev takes half of each kind (rounded down), or
+the tuned-on pieces if they are more. Make every choice on dev; score test once per change and report it.
 
 Beats count from the first to the last moment the audio is within 30 dB of its loudest 50-ms frame, so silent
-intros and tails carry no beats. ``run`` scores each tracker with ``mir_eval.beat`` without trimming the first
-5 s (``min_beat_time=0``: a dance starts with the song): F-measure (+-70 ms), CMLt and AMLt (continuity at the
-annotated metrical level / at any of double, half or off-beat levels). Trackers: librosa's default
-``beat_track``, the tracker the project used before (low-band onsets under 150 Hz), and the project's tracker
-:func:`stage1_pose.beats.beat_times`. The tempo for dancing (:func:`stage1_pose.beats.dance_tempo`) is reported
-separately, with the true tempo, because the F-measure is judged at the annotated quarter-note level.
+intros and tails carry no beats (nor downbeats). ``run`` scores each tracker with ``mir_eval.beat`` without
+trimming the first 5 s (``min_beat_time=0``: a dance starts with the song): F-measure (+-70 ms), CMLt and AMLt
+(continuity at the annotated metrical level / at any of double, half or off-beat levels), and the downbeat
+F-measure (``f_measure`` on downbeats, +-70 ms) for trackers that give downbeats. None of the three does, so that
+column is empty (a tracker's beats taken every ``metre`` beats from their best phase would read the truth):
+librosa's default ``beat_track``, the tracker the project used before (low-band onsets under 150 Hz), and the
+project's tracker :func:`stage1_pose.beats.beat_times`. The tempo for dancing (:func:`stage1_pose.beats.dance_tempo`)
+is printed with the true tempo, because the F-measure is judged at the annotated beat level.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
+import os
 import shutil
 import subprocess
+import sys
 import tempfile
 from collections import defaultdict
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -51,15 +82,19 @@ SR = 22050
 MAX_SECONDS = 120.0
 DEFAULT_CACHE = Path.home() / ".cache" / "dancesynth" / "beat-benchmark"
 SOUNDFONT = Path("/usr/share/sounds/sf2/FluidR3_GM.sf2")
-LICENCES = {
-    "fretsonfire-songs-muldjord": "CC-BY-SA-3.0",
-    "fretsonfire-songs-sectoid": "MIT",
-    "openttd-openmsx": "GPL-2.0-only",
-    "mma": "GPL-2.0-or-later",
-}
+KINDS = ("swing", "triple", "fast", "slow", "hip-hop", "electronic", "rock-metal", "latin", "classical", "jazz", "pop",
+         "soundtrack")
+# Tempo kinds, by the true median beat tempo in BPM.
+FAST_BPM = 150.0
+SLOW_BPM = 80.0
 _FOF = "usr/share/games/fretsonfire/data/songs"
 _OPENMSX = "usr/share/games/openttd/baseset/openmsx"
-_MMA = "usr/share/doc/mma/examples"
+_MMA_EXAMPLES = "usr/share/doc/mma/examples"
+_MMA_LIB = "usr/share/mma/lib"
+_MUSESCORE = "usr/share/mscore3-3.2/demos"
+# An MMA song: these chords, one a bar, repeated for about this many seconds.
+_MMA_CHORDS = ("C", "Am", "F", "G7")
+_MMA_SECONDS = 60.0
 # Onset envelope of the phase search: 32-sample hop at 22050 Hz, offsets -300..+300 ms in 2 ms steps.
 _PHASE_HOP = 32
 _PHASE_OFFSETS = np.arange(-0.3, 0.3001, 0.002)
@@ -71,33 +106,187 @@ _ACTIVE_DB = 30.0
 
 @dataclass(frozen=True)
 class Piece:
-    """One benchmark piece: ``genre/name`` id, Debian package, file inside it and kind ("midi" or "fof")."""
+    """One benchmark piece: its id, kinds (main kind first), Debian package, file inside it, licence and source.
 
-    genre: str
-    name: str
+    ``source`` is "midi" (a MIDI file), "musescore" (a score exported to MIDI), "fof" (a Frets-on-Fire song folder)
+    or "mma" (``path`` is an MMA groove library file; the song plays ``groove`` at ``bpm`` MIDI quarter notes a
+    minute, ``grid`` is (MIDI quarter notes per beat, beats per bar) and ``extra`` holds MMA lines added after the
+    groove).
+    """
+
+    id: str
+    kinds: tuple[str, ...]
     package: str
     path: str
-    kind: str
+    licence: str
+    source: str
+    groove: str = ""
+    bpm: float = 0.0
+    grid: tuple[int, int] = (1, 4)
+    extra: str = ""
 
-    @property
-    def id(self) -> str:
-        return f"{self.genre}-{self.name}"
+
+def _openmsx(id_: str, kinds: tuple[str, ...], name: str) -> Piece:
+    return Piece(id_, kinds, "openttd-openmsx", f"{_OPENMSX}/{name}.mid", "GPL-2.0-only", "midi")
 
 
+def _mma(id_: str, kinds: tuple[str, ...], library: str, groove: str, bpm: float, grid: tuple[int, int] = (1, 4),
+         extra: str = "") -> Piece:
+    return Piece(id_, kinds, "mma", f"{_MMA_LIB}/{library}.mma", "GPL-2.0-or-later", "mma", groove, bpm, grid, extra)
+
+
+def _musescore(id_: str, kinds: tuple[str, ...], name: str, licence: str) -> Piece:
+    return Piece(id_, kinds, "musescore3-common", f"{_MUSESCORE}/{name}", licence, "musescore")
+
+
+def _fof(id_: str, kinds: tuple[str, ...], package: str, folder: str, licence: str) -> Piece:
+    return Piece(id_, kinds, package, f"{_FOF}/{folder}", licence, "fof")
+
+
+_MULDJORD, _SECTOID = "fretsonfire-songs-muldjord", "fretsonfire-songs-sectoid"
 PIECES: tuple[Piece, ...] = (
-    *(Piece("metal", n, "fretsonfire-songs-muldjord", f"{_FOF}/muldjord/{n}", "fof")
-      for n in ("armygeddon", "chaos_god", "mutilated_mime")),
-    *(Piece("rock", n.lower().replace(" ", "_"), "fretsonfire-songs-sectoid", f"{_FOF}/sectoid/{n}", "fof")
-      for n in ("Escape from chaosland", "Feelings", "Metal madness", "War of freedom")),
-    *(Piece("jazz-blues", n, "openttd-openmsx", f"{_OPENMSX}/{n}_redfarn.mid", "midi")
-      for n in ("city_blues", "say_what", "slow_neasy", "mosey_along", "no_work_song")),
-    *(Piece("soundtrack", n, "openttd-openmsx", f"{_OPENMSX}/{n}.mid", "midi")
-      for n in ("chemistry_lab", "harp_harmony", "mighty_giant_run", "keep_on_rolling")),
-    Piece("latin", "bossa_nova", "mma", f"{_MMA}/aria/bossa.mid", "midi"),
-    Piece("latin", "rhumba", "mma", f"{_MMA}/tutorial/fella2.mid", "midi"),
-    Piece("latin", "rhumba_crescendo", "mma", f"{_MMA}/after/cresc.mid", "midi"),
-    Piece("latin", "bolero", "mma", f"{_MMA}/triggers/hits.mid", "midi"),
+    # The first benchmark's 20 pieces (ids kept).
+    _fof("metal-armygeddon", ("rock-metal", "fast"), _MULDJORD, "muldjord/armygeddon", "CC-BY-SA-3.0"),
+    _fof("metal-chaos_god", ("rock-metal", "fast"), _MULDJORD, "muldjord/chaos_god", "CC-BY-SA-3.0"),
+    _fof("metal-mutilated_mime", ("rock-metal", "fast"), _MULDJORD, "muldjord/mutilated_mime", "CC-BY-SA-3.0"),
+    _fof("rock-escape_from_chaosland", ("rock-metal",), _SECTOID, "sectoid/Escape from chaosland", "MIT"),
+    _fof("rock-feelings", ("rock-metal",), _SECTOID, "sectoid/Feelings", "MIT"),
+    _fof("rock-metal_madness", ("rock-metal", "fast"), _SECTOID, "sectoid/Metal madness", "MIT"),
+    _fof("rock-war_of_freedom", ("rock-metal",), _SECTOID, "sectoid/War of freedom", "MIT"),
+    _openmsx("jazz-blues-city_blues", ("jazz",), "city_blues_redfarn"),
+    _openmsx("jazz-blues-say_what", ("jazz",), "say_what_redfarn"),
+    _openmsx("jazz-blues-slow_neasy", ("jazz", "swing"), "slow_neasy_redfarn"),
+    _openmsx("jazz-blues-mosey_along", ("jazz", "swing"), "mosey_along_redfarn"),
+    _openmsx("jazz-blues-no_work_song", ("jazz",), "no_work_song_redfarn"),
+    _openmsx("soundtrack-chemistry_lab", ("soundtrack",), "chemistry_lab"),
+    _openmsx("soundtrack-harp_harmony", ("soundtrack",), "harp_harmony"),
+    _openmsx("soundtrack-mighty_giant_run", ("soundtrack", "fast"), "mighty_giant_run"),
+    _openmsx("soundtrack-keep_on_rolling", ("soundtrack",), "keep_on_rolling"),
+    Piece("latin-bossa_nova", ("latin",), "mma", f"{_MMA_EXAMPLES}/aria/bossa.mid", "GPL-2.0-or-later", "midi"),
+    Piece("latin-rhumba", ("latin",), "mma", f"{_MMA_EXAMPLES}/tutorial/fella2.mid", "GPL-2.0-or-later", "midi"),
+    Piece("latin-rhumba_crescendo", ("latin",), "mma", f"{_MMA_EXAMPLES}/after/cresc.mid", "GPL-2.0-or-later",
+          "midi"),
+    Piece("latin-bolero", ("latin",), "mma", f"{_MMA_EXAMPLES}/triggers/hits.mid", "GPL-2.0-or-later", "midi"),
+    # Composed game music, not in the first benchmark.
+    _openmsx("jazz-5432gone", ("jazz", "swing"), "5432gone_redfarn"),
+    _openmsx("jazz-careless_perc", ("jazz", "swing", "slow"), "careless_perc_redfarn"),
+    _openmsx("jazz-moo", ("jazz", "swing"), "moo_redfarn"),
+    _openmsx("jazz-the_hobo", ("jazz",), "the_hobo_redfarn"),
+    _openmsx("jazz-be_sharp_bw", ("jazz",), "be_sharp_bw_redfarn"),
+    _openmsx("triple-boogi_marabi", ("triple", "jazz", "swing", "fast"), "boogi_marabi_redfarn"),
+    _openmsx("soundtrack-coconut_run", ("soundtrack", "fast"), "coconut_run2"),
+    _openmsx("soundtrack-flying_scotsman", ("soundtrack", "fast"), "flying_scotsman"),
+    _openmsx("soundtrack-ultimate_run", ("soundtrack", "fast"), "ultimate_run"),
+    _openmsx("soundtrack-ttsong_iv", ("soundtrack", "slow"), "ttsong_iv_imuh3"),
+    # Notation software's demo scores.
+    _musescore("classical-fugue_1", ("classical",), "Fugue_1.mscx", "CC-BY-3.0"),
+    _musescore("classical-dynamic_strings", ("classical", "slow"), "Dynamic_Strings.mscx", "CC-BY-SA-4.0"),
+    _musescore("classical-brassed_up", ("classical",), "Brassed_Up.mscx", "CC-BY-SA-4.0"),
+    _musescore("jazz-reunion", ("jazz",), "Reunion.mscz", "CC-BY-3.0"),
+    # A swing lead sheet's melody alone (MuseScore 3.2 does not play its chord symbols).
+    _musescore("jazz-unclaimed_gift", ("jazz", "swing"), "Unclaimed_Gift.mscx", "CC-BY-3.0"),
+    # MMA grooves at chosen tempi.
+    _mma("rock-rock1_160", ("rock-metal", "fast"), "casio/rock1", "Rock1", 160),
+    _mma("rock-rock1a_120", ("rock-metal",), "pflib/rock1", "rock1A", 120),
+    _mma("rock-softrock_100", ("rock-metal",), "stdlib/softrock", "SoftRock", 100),
+    _mma("rock-rockballad_66", ("rock-metal", "slow"), "stdlib/rockballad", "RockBallad", 66),
+    _mma("rock-punk_190", ("rock-metal", "fast"), "zoom/punk", "PUNK01", 190),
+    _mma("metal-heavymetal_140", ("rock-metal",), "casio/heavymetal", "HeavyMetal", 140),
+    _mma("metal-metal1_176", ("rock-metal", "fast"), "pflib/metal1", "metal1A", 176),
+    _mma("jazz-bebop_220", ("jazz", "swing", "fast"), "stdlib/bebop", "Bebop", 220),
+    _mma("latin-salsa_180", ("latin", "fast"), "stdlib/salsa", "Salsa", 180),
+    _mma("latin-mambo_176", ("latin", "fast"), "stdlib/mambo", "Mambo", 176),
+    _mma("latin-tango_124", ("latin",), "stdlib/tango", "Tango", 124),
+    _mma("latin-chacha_116", ("latin",), "stdlib/chacha", "ChaCha", 116),
+    _mma("latin-bossanova_136", ("latin",), "stdlib/bossanova", "BossaNova", 136),
+    _mma("latin-beguine_120", ("latin",), "stdlib/beguine", "Beguine", 120),
+    _mma("triple-fastwaltz_160", ("triple", "fast"), "stdlib/fastwaltz", "FastWaltz", 160, (1, 3)),
+    _mma("triple-waltz_96", ("triple",), "stdlib/waltz", "Waltz", 96, (1, 3)),
+    _mma("triple-jazzwaltz_132", ("triple", "jazz"), "stdlib/jazzwaltz", "JazzWaltz", 132, (1, 3)),
+    # MMA's 6/8 march counts dotted quarters as MIDI quarters, its Casio 6/8 ballad eighths.
+    _mma("triple-68march_112", ("triple",), "stdlib/68march", "68March", 112, (1, 2)),
+    _mma("triple-68ballad_56", ("triple", "slow"), "casio/68ballad", "68Ballad", 168, (3, 2)),
+    _mma("swing-16shuffle_102", ("swing", "pop"), "casio/16shuffle1", "16Shuffle1", 102),
+    _mma("swing-popshuffle_112", ("swing", "pop"), "casio/popshuffle1", "PopShuffle1", 112),
+    _mma("swing-shuffleboggie_120", ("swing",), "stdlib/shuffleboggie", "ShuffleBoggie", 120),
+    _mma("swing-swing_132", ("swing", "jazz"), "stdlib/swing", "Swing", 132),
+    # A side-stick on every off-beat, added to the groove: the kind of hip-hop song the tracker was seen to fail on.
+    _mma("hiphop-hiphop_87", ("hip-hop",), "alexis/hiphop", "HipHop", 87,
+         extra="Begin Drum-OffBeatStick\n Tone SideKick\n Sequence {1.5 0 90; 2.5 0 90; 3.5 0 90; 4.5 0 90}\nEnd"),
+    _mma("hiphop-hip-hop_92", ("hip-hop",), "casio/hip-hop", "Hip-Hop", 92),
+    _mma("hiphop-hip01_96", ("hip-hop",), "zoom/hiphop", "HIP01", 96),
+    _mma("hiphop-triphop_76", ("hip-hop", "electronic", "slow"), "casio/triphop", "TripHop", 76),
+    _mma("electronic-techno_130", ("electronic",), "casio/techno", "Techno", 130),
+    _mma("electronic-house_124", ("electronic",), "casio/house", "House", 124),
+    _mma("electronic-trance_138", ("electronic",), "casio/trance1", "Trance1", 138),
+    _mma("electronic-dnb_172", ("electronic", "fast"), "zoom/dnb", "DnB01", 172),
+    _mma("pop-pop_116", ("pop", "swing"), "casio/pop", "Pop", 116),
+    _mma("pop-80spop_120", ("pop",), "casio/80spop", "80sPop", 120),
+    _mma("pop-dancepop_124", ("pop", "electronic"), "casio/dancepop1", "DancePop1", 124),
+    _mma("pop-popballad_72", ("pop", "slow"), "stdlib/popballad", "PopBallad", 72),
 )
+
+# Drawn once before any tracker ran on the new pieces (see the docstring); pieces are added, never moved.
+SPLIT: dict[str, str] = {
+    "metal-armygeddon": "dev", "metal-chaos_god": "dev", "metal-mutilated_mime": "dev",
+    "rock-escape_from_chaosland": "dev", "rock-feelings": "dev", "rock-metal_madness": "dev",
+    "rock-war_of_freedom": "dev", "jazz-blues-city_blues": "dev", "jazz-blues-say_what": "dev",
+    "jazz-blues-slow_neasy": "dev", "jazz-blues-mosey_along": "dev", "jazz-blues-no_work_song": "dev",
+    "soundtrack-chemistry_lab": "dev", "soundtrack-harp_harmony": "dev", "soundtrack-mighty_giant_run": "dev",
+    "soundtrack-keep_on_rolling": "dev", "latin-bossa_nova": "dev", "latin-rhumba": "dev",
+    "latin-rhumba_crescendo": "dev", "latin-bolero": "dev", "jazz-5432gone": "test", "jazz-careless_perc": "dev",
+    "jazz-moo": "test", "jazz-the_hobo": "test", "jazz-be_sharp_bw": "test", "triple-boogi_marabi": "dev",
+    "soundtrack-coconut_run": "test", "soundtrack-flying_scotsman": "test", "soundtrack-ultimate_run": "test",
+    "soundtrack-ttsong_iv": "test", "classical-fugue_1": "dev", "classical-dynamic_strings": "test",
+    "classical-brassed_up": "test", "jazz-reunion": "test", "jazz-unclaimed_gift": "test", "rock-rock1_160": "test",
+    "rock-rock1a_120": "test", "rock-softrock_100": "test", "rock-rockballad_66": "test", "rock-punk_190": "test",
+    "metal-heavymetal_140": "test", "metal-metal1_176": "test", "jazz-bebop_220": "test", "latin-salsa_180": "test",
+    "latin-mambo_176": "test", "latin-tango_124": "test", "latin-chacha_116": "test", "latin-bossanova_136": "dev",
+    "latin-beguine_120": "test", "triple-fastwaltz_160": "dev", "triple-waltz_96": "dev",
+    "triple-jazzwaltz_132": "test", "triple-68march_112": "test", "triple-68ballad_56": "test",
+    "swing-16shuffle_102": "dev", "swing-popshuffle_112": "test", "swing-shuffleboggie_120": "dev",
+    "swing-swing_132": "test", "hiphop-hiphop_87": "dev", "hiphop-hip-hop_92": "test", "hiphop-hip01_96": "test",
+    "hiphop-triphop_76": "dev", "electronic-techno_130": "test", "electronic-house_124": "test",
+    "electronic-trance_138": "dev", "electronic-dnb_172": "dev", "pop-pop_116": "test", "pop-80spop_120": "test",
+    "pop-dancepop_124": "dev", "pop-popballad_72": "dev",
+}
+
+
+def beat_unit(numerator: int, denominator: int, ticks_per_quarter: int) -> tuple[float, int]:
+    """(beat length in ticks, beats per bar) of a time signature: compound metres (6/8, 9/8, 12/8) count dotted
+    notes, the others their denominator's note."""
+    unit = ticks_per_quarter * 4 / denominator
+    if denominator >= 8 and numerator >= 6 and numerator % 3 == 0:
+        return 3 * unit, numerator // 3
+    return unit, numerator
+
+
+def bar_grid(signatures: Sequence[tuple[int, int, int]], ticks_per_quarter: int,
+             end_tick: int) -> tuple[np.ndarray, np.ndarray]:
+    """(beat ticks, downbeat ticks) up to and including ``end_tick`` from time signatures ``(tick, numerator,
+    denominator)`` (4/4 until the first; a bar line at each).
+
+    A first bar shorter than the bar after it is a pickup: its beats are counted back from the first full bar, and
+    it has no downbeat.
+    """
+    sigs = {0: (4, 4)}
+    for tick, numerator, denominator in sorted(signatures):
+        sigs[tick] = (numerator, denominator)
+    starts = sorted(sigs)
+    bounds = [*starts[1:], end_tick + 1]
+    lengths = [sigs[s][0] * ticks_per_quarter * 4 / sigs[s][1] for s in starts]
+    beats: list[float] = []
+    downbeats: list[float] = []
+    for i, (start, stop) in enumerate(zip(starts, bounds)):
+        beat, _ = beat_unit(*sigs[start], ticks_per_quarter)
+        if i == 0 and len(starts) > 1 and stop - start == lengths[0] < lengths[1]:
+            beat, _ = beat_unit(*sigs[stop], ticks_per_quarter)
+            beats.extend(np.arange(stop - beat, start - 1e-6, -beat)[::-1])
+            continue
+        for bar in np.arange(start, stop, lengths[i]):
+            downbeats.append(bar)
+            beats.extend(np.arange(bar, min(bar + lengths[i], stop), beat))
+    return np.array(beats), np.array(downbeats)
 
 
 def _tempo_map(mid) -> Callable[[np.ndarray], np.ndarray]:
@@ -123,20 +312,43 @@ def _tempo_map(mid) -> Callable[[np.ndarray], np.ndarray]:
     return to_seconds
 
 
-def _midi_grid(path: Path, notes: range | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """(quarter-note beat times, note-on times) in seconds of a MIDI file; ``notes`` limits the pitches."""
+def midi_grid(path: Path, grid: tuple[int, int] | None = None,
+              notes: range | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(beat times, downbeat times, note-on times) in seconds of a MIDI file.
+
+    Bars from its time signatures (:func:`bar_grid`), or, with ``grid`` = (MIDI quarter notes per beat, beats per
+    bar), bars of that size from tick 0; ``notes`` limits the note-on pitches.
+    """
     import mido
 
     mid = mido.MidiFile(path)
     events = [(t, m) for track in mid.tracks for t, m in zip(np.cumsum([m.time for m in track]), track)]
-    for _, m in events:
-        if m.type == "time_signature" and m.denominator != 4:
-            raise ValueError(f"{path}: metre {m.numerator}/{m.denominator}; only x/4 pieces are supported")
+    end = max(int(t) for t, _ in events)
+    if grid is None:
+        beats, downbeats = bar_grid([(int(t), m.numerator, m.denominator) for t, m in events
+                                     if m.type == "time_signature"], mid.ticks_per_beat, end)
+    else:
+        beats = np.arange(0, end + 1, grid[0] * mid.ticks_per_beat, dtype=np.float64)
+        downbeats = beats[::grid[1]]
     on = np.array(sorted(t for t, m in events if m.type == "note_on" and m.velocity > 0
                          and (notes is None or m.note in notes)), np.float64)
     to_seconds = _tempo_map(mid)
-    beat_ticks = np.arange(0, max(t for t, _ in events) + mid.ticks_per_beat, mid.ticks_per_beat, dtype=np.float64)
-    return to_seconds(beat_ticks), np.unique(to_seconds(on))
+    return to_seconds(beats), to_seconds(downbeats), np.unique(to_seconds(on))
+
+
+def tempo_kinds(beats: np.ndarray) -> set[str]:
+    """{"fast"}, {"slow"} or no kind from the median spacing of beat times in seconds (see ``FAST_BPM``)."""
+    bpm = 60.0 / float(np.median(np.diff(beats)))
+    return {"fast"} if bpm >= FAST_BPM else {"slow"} if bpm <= SLOW_BPM else set()
+
+
+def mma_song(piece: Piece) -> str:
+    """MMA source of an "mma" piece: seeded random timing, its tempo and groove, then one chord a bar for about
+    ``_MMA_SECONDS``."""
+    bars = math.ceil(_MMA_SECONDS * piece.bpm / 60.0 / (piece.grid[0] * piece.grid[1]))
+    library = piece.path.removeprefix(f"{_MMA_LIB}/").removesuffix(".mma")
+    chords = "\n".join(_MMA_CHORDS[i % len(_MMA_CHORDS)] for i in range(bars))
+    return f"RndSeed 1\nTempo {piece.bpm:g}\nUse {library}\nGroove {piece.groove}\n{piece.extra}\n{chords}\n"
 
 
 def _active_span(y: np.ndarray) -> tuple[float, float]:
@@ -196,51 +408,79 @@ def _fetch_packages(cache: Path) -> None:
         partial.rename(cache / "pkgs" / p)
 
 
-def _write(cache: Path, piece: Piece, y: np.ndarray, beats: np.ndarray, extra: dict) -> None:
+def _piece_midi(cache: Path, piece: Piece, tmp: Path) -> Path:
+    """The MIDI file of a rendered piece: the packaged file, or one MMA or MuseScore writes into ``tmp``."""
+    source = cache / "pkgs" / piece.package / piece.path
+    if piece.source == "midi":
+        return source
+    out = tmp / "piece.mid"
+    if piece.source == "mma":
+        song = tmp / "song.mma"
+        song.write_text(mma_song(piece))
+        home = cache / "pkgs" / "mma" / "usr" / "share" / "mma"
+        subprocess.run([sys.executable, str(cache / "pkgs" / "mma" / "usr" / "bin" / "mma"), "-f", str(out),
+                        str(song)], check=True, capture_output=True, env={**os.environ, "MMA_HOME": str(home)})
+    else:
+        subprocess.run(["mscore3", "-o", str(out), str(source)], check=True, capture_output=True,
+                       env={**os.environ, "QT_QPA_PLATFORM": "offscreen"})
+    return out
+
+
+def _render(mid: Path, tmp: Path) -> np.ndarray:
+    """Mono audio at ``SR`` of a MIDI file rendered by fluidsynth with the General MIDI soundfont."""
+    wav = tmp / "out.wav"
+    subprocess.run(["fluidsynth", "-ni", "-g", "0.3", "-r", "44100", "-F", str(wav), str(SOUNDFONT), str(mid)],
+                   check=True, capture_output=True)
+    return _load(wav)
+
+
+def _write(cache: Path, piece: Piece, y: np.ndarray, beats: np.ndarray, downbeats: np.ndarray, extra: dict) -> None:
     import soundfile as sf
 
     y = y[:int(MAX_SECONDS * SR)]
     start, end = _active_span(y)
+    downbeats = downbeats[(downbeats >= start - 0.01) & (downbeats <= end)]
+    metre = int(np.median(np.diff(np.searchsorted(beats, downbeats))))
     beats = beats[(beats >= start - 0.01) & (beats <= end)]
+    if tempo_kinds(beats) != set(piece.kinds) & {"fast", "slow"}:
+        raise ValueError(f"{piece.id}: {60 / np.median(np.diff(beats)):.0f} BPM disagrees with its kinds {piece.kinds}")
     copyright_src = cache / "pkgs" / piece.package / "usr/share/doc" / piece.package / "copyright"
     (cache / "licences").mkdir(exist_ok=True)
     shutil.copyfile(copyright_src, cache / "licences" / f"{piece.package}.copyright")
     sf.write(cache / "audio" / f"{piece.id}.flac", y, SR)
-    info = {"id": piece.id, "genre": piece.genre, "package": piece.package, "file": piece.path,
-            "licence": LICENCES[piece.package], "copyright": f"licences/{piece.package}.copyright",
-            "bpm": round(float(60.0 / np.median(np.diff(beats))), 2), "seconds": round(len(y) / SR, 2),
-            **extra, "beats": [round(float(b), 4) for b in beats]}
+    info = {"id": piece.id, "kinds": list(piece.kinds), "package": piece.package, "file": piece.path,
+            "licence": piece.licence, "copyright": f"licences/{piece.package}.copyright",
+            "bpm": round(float(60.0 / np.median(np.diff(beats))), 2), "metre": metre, "seconds": round(len(y) / SR, 2),
+            **extra, "beats": [round(float(b), 4) for b in beats], "downbeats": [round(float(b), 4) for b in downbeats]}
     (cache / "audio" / f"{piece.id}.json").write_text(json.dumps(info, indent=1))
-    print(f"{piece.id:28s} {info['bpm']:6.1f} BPM {len(beats):4d} beats  {extra}")
+    print(f"{piece.id:30s} {info['bpm']:6.1f} BPM {metre}/bar {len(beats):4d} beats  {extra}", flush=True)
 
 
 def fetch(cache: Path) -> None:
-    """Download, extract and render every piece into ``cache`` with its ground-truth beats and licence."""
-    if shutil.which("fluidsynth") is None or not SOUNDFONT.is_file():
-        raise SystemExit("fluidsynth and its General MIDI soundfont are needed: "
-                         "apt-get install fluidsynth fluid-soundfont-gm")
+    """Download, extract and render every piece into ``cache`` with its ground-truth beats, downbeats and licence."""
+    if shutil.which("fluidsynth") is None or not SOUNDFONT.is_file() or shutil.which("mscore3") is None:
+        raise SystemExit("fluidsynth, its General MIDI soundfont and MuseScore 3 are needed: "
+                         "apt-get install fluidsynth fluid-soundfont-gm musescore3")
     _fetch_packages(cache)
     (cache / "audio").mkdir(exist_ok=True)
     lags = []
-    for piece in (p for p in PIECES if p.kind == "midi"):
-        mid = cache / "pkgs" / piece.package / piece.path
+    for piece in (p for p in PIECES if p.source != "fof"):
         with tempfile.TemporaryDirectory() as tmp:
-            wav = Path(tmp) / "out.wav"
-            subprocess.run(["fluidsynth", "-ni", "-g", "0.3", "-r", "44100", "-F", str(wav), str(SOUNDFONT),
-                            str(mid)], check=True, capture_output=True)
-            y = _load(wav)
-        beats, onsets = _midi_grid(mid)
+            mid = _piece_midi(cache, piece, Path(tmp))
+            y = _render(mid, Path(tmp))
+            beats, downbeats, onsets = midi_grid(mid, piece.grid if piece.source == "mma" else None)
         lag = _peak(_phase_scores(y[:int(MAX_SECONDS * SR)], onsets[onsets < MAX_SECONDS - 1]))[0]
         lags.append(lag)
-        _write(cache, piece, y, beats, {"onset_lag_ms": round(1000 * lag)})
+        _write(cache, piece, y, beats, downbeats, {"onset_lag_ms": round(1000 * lag)})
     lag = float(np.median(lags))
     print(f"onset-envelope lag on rendered MIDI (true offset 0): median {1000 * lag:.0f} ms")
-    for piece in (p for p in PIECES if p.kind == "fof"):
+    for piece in (p for p in PIECES if p.source == "fof"):
         folder = cache / "pkgs" / piece.package / piece.path
-        beats, chart = _midi_grid(folder / "notes.mid", _EXPERT_NOTES)
+        beats, downbeats, chart = midi_grid(folder / "notes.mid", notes=_EXPERT_NOTES)
         offset, ratio, width = _peak(_phase_scores(_load(folder / "guitar.ogg"), chart))
-        _write(cache, piece, _load(folder / "song.ogg"), beats + offset - lag,
-               {"offset_ms": round(1000 * (offset - lag)), "phase_peak_over_median": round(ratio, 2),
+        shift = offset - lag
+        _write(cache, piece, _load(folder / "song.ogg"), beats + shift, downbeats + shift,
+               {"offset_ms": round(1000 * shift), "phase_peak_over_median": round(ratio, 2),
                 "phase_peak_width_ms": round(1000 * width)})
 
 
@@ -255,66 +495,92 @@ def _previous_tracker(y: np.ndarray, sr: int) -> np.ndarray:
     return librosa.beat.beat_track(onset_envelope=onset, sr=sr, hop_length=hop, bpm=bpm, units="time")[1]
 
 
-def _trackers() -> dict[str, Callable[[np.ndarray, int], np.ndarray]]:
+Tracker = Callable[[np.ndarray, int], tuple[np.ndarray, np.ndarray | None]]
+
+
+def _trackers() -> dict[str, Tracker]:
+    """Name -> tracker giving (beat times, downbeat times or None) in seconds of a mono song at ``sr`` Hz."""
     import librosa
 
     from stage1_pose.beats import beat_times
 
-    return {"librosa": lambda y, sr: librosa.beat.beat_track(y=y, sr=sr, units="time")[1],
-            "previous": _previous_tracker, "project": beat_times}
+    return {"librosa": lambda y, sr: (librosa.beat.beat_track(y=y, sr=sr, units="time")[1], None),
+            "previous": lambda y, sr: (_previous_tracker(y, sr), None),
+            "project": lambda y, sr: (beat_times(y, sr), None)}
 
 
-def _scores(estimated: np.ndarray, reference: np.ndarray) -> tuple[float, float, float]:
-    """(F-measure +-70 ms, CMLt, AMLt), no trimming of the first 5 s."""
+def scores(beats: np.ndarray, downbeats: np.ndarray | None, reference: np.ndarray,
+           reference_downbeats: np.ndarray) -> tuple[float, float, float, float]:
+    """(F-measure +-70 ms, CMLt, AMLt, downbeat F-measure +-70 ms or NaN without ``downbeats``) of times in
+    seconds, no trimming of the first 5 s."""
     import mir_eval
 
     ref = mir_eval.beat.trim_beats(reference, min_beat_time=0.0)
-    est = mir_eval.beat.trim_beats(np.asarray(estimated, np.float64), min_beat_time=0.0)
+    est = mir_eval.beat.trim_beats(np.asarray(beats, np.float64), min_beat_time=0.0)
     _, cmlt, _, amlt = mir_eval.beat.continuity(ref, est)
-    return mir_eval.beat.f_measure(ref, est, f_measure_threshold=0.07), cmlt, amlt
+    down = np.nan if downbeats is None else mir_eval.beat.f_measure(
+        mir_eval.beat.trim_beats(reference_downbeats, min_beat_time=0.0),
+        mir_eval.beat.trim_beats(np.asarray(downbeats, np.float64), min_beat_time=0.0), f_measure_threshold=0.07)
+    return mir_eval.beat.f_measure(ref, est, f_measure_threshold=0.07), cmlt, amlt, down
 
 
-def run(cache: Path, only: str | None) -> None:
-    """Print per-song and per-genre F, CMLt and AMLt for each tracker, and the tempi."""
+def _cell(values: Sequence[float], digits: int) -> str:
+    """A table cell "F / CMLt / AMLt / downbeat F" with ``digits`` decimals, a dash for NaN."""
+    return " / ".join("–" if np.isnan(v) else f"{v:.{digits}f}" for v in values)
+
+
+def _column_means(rows: Sequence[Sequence[float]]) -> list[float]:
+    """Mean of each column over its non-NaN values; NaN for a column of NaNs only."""
+    columns = np.array(rows, np.float64).T
+    return [float(np.mean(c[~np.isnan(c)])) if (~np.isnan(c)).any() else np.nan for c in columns]
+
+
+def run(cache: Path, split: str, only: str | None) -> None:
+    """Print markdown tables of F, CMLt, AMLt and downbeat F per piece and per kind for each tracker, and the
+    tempi, over the pieces of ``split`` ("dev", "test" or "all")."""
     from stage1_pose.beats import dance_tempo, tempo
 
     infos = [json.loads(p.read_text()) for p in sorted((cache / "audio").glob("*.json"))]
     if not infos:
         raise SystemExit(f"No pieces in {cache}/audio: run `beat_benchmark.py fetch` first.")
-    infos = [i for i in infos if only is None or only in i["id"]]
+    infos = [i for i in infos if i["id"] in SPLIT and split in ("all", SPLIT[i["id"]])
+             and (only is None or only in i["id"])]
+    kinds = {p.id: p.kinds for p in PIECES}
     trackers = _trackers()
-    per_genre: dict[str, dict[str, list]] = defaultdict(lambda: defaultdict(list))
-    print(f"{'piece':28s} {'true':>5s} {'tempo':>5s} {'dance':>5s} " + " ".join(f"{n + ' F/CMLt/AMLt':>20s}"
-                                                                           for n in trackers))
+    per_kind: dict[str, dict[str, list]] = defaultdict(lambda: defaultdict(list))
+    names = " | ".join(f"{n} F / CMLt / AMLt / DbF" for n in trackers)
+    print(f"| piece | kinds | split | true BPM | metre | tempo | dance | {names} |")
+    print("|---" * (7 + len(trackers)) + "|")
     for info in infos:
         y = _load(cache / "audio" / f"{info['id']}.flac")
-        reference = np.array(info["beats"])
         row = []
         for name, track in trackers.items():
-            s = _scores(track(y, SR), reference)
-            per_genre[info["genre"]][name].append(s)
-            per_genre["ALL"][name].append(s)
-            row.append(f"{s[0]:.2f}/{s[1]:.2f}/{s[2]:.2f}")
+            s = scores(*track(y, SR), np.array(info["beats"]), np.array(info["downbeats"]))
+            for kind in (*kinds[info["id"]], "all"):
+                per_kind[kind][name].append(s)
+            row.append(_cell(s, 2))
         bpm = tempo(y, SR)
-        print(f"{info['id']:28s} {info['bpm']:5.0f} {bpm:5.0f} {dance_tempo(bpm):5.0f} "
-              + " ".join(f"{r:>20s}" for r in row), flush=True)
-    print(f"\n{'genre':12s} {'n':>3s} " + " ".join(f"{n + ' F/CMLt/AMLt':>20s}" for n in trackers))
-    for genre in sorted(per_genre, key=lambda g: (g == "ALL", g)):
-        cells = [np.mean(per_genre[genre][n], axis=0) for n in trackers]
-        print(f"{genre:12s} {len(per_genre[genre]['librosa']):3d} "
-              + " ".join(f"{c[0]:.3f}/{c[1]:.3f}/{c[2]:.3f}".rjust(20) for c in cells))
+        print(f"| {info['id']} | {', '.join(kinds[info['id']])} | {SPLIT[info['id']]} | {info['bpm']:.0f} | "
+              f"{info['metre']} | {bpm:.0f} | {dance_tempo(bpm):.0f} | " + " | ".join(row) + " |", flush=True)
+    print(f"\n| kind | n | {names} |")
+    print("|---" * (2 + len(trackers)) + "|")
+    for kind in sorted(per_kind, key=lambda k: len(KINDS) if k == "all" else KINDS.index(k)):
+        cells = [_cell(_column_means(per_kind[kind][n]), 3) for n in trackers]
+        print(f"| {kind} | {len(per_kind[kind]['librosa'])} | " + " | ".join(cells) + " |")
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("command", choices=("fetch", "run"))
     parser.add_argument("--cache", type=Path, default=DEFAULT_CACHE)
+    parser.add_argument("--split", choices=("dev", "test", "all"), default="dev",
+                        help="run: score this half (see SPLIT); dev for every choice, test once per change")
     parser.add_argument("--only", help="run: score only pieces whose id contains this text")
     args = parser.parse_args()
     if args.command == "fetch":
         fetch(args.cache)
     else:
-        run(args.cache, args.only)
+        run(args.cache, args.split, args.only)
 
 
 if __name__ == "__main__":
