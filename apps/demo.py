@@ -19,7 +19,6 @@ from pathlib import Path
 import numpy as np
 
 from apps.pipeline import dance
-from dancesynth.core.device import resolve_device, resolve_precision
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
 from dancesynth.core.media import SONG_SAMPLE_RATE, load_song, read_frames
@@ -31,7 +30,7 @@ from stage1_pose.generate import generate_dance, load_pose_model
 from stage1_pose.metrics import beat_align_score, beat_coverage, beat_hit_rate
 from stage1_pose.pretrained import DEFAULT_POSE_MODEL, TRAINING_DATA_SEED
 from stage2_video.cache import train_for
-from stage2_video.models.pix2pixhd import affordable_preset
+from stage2_video.presets import resolve_preset
 from stage2_video.synthetic_person import appearance_preset, write_person_video
 
 logger = logging.getLogger(__name__)
@@ -131,8 +130,7 @@ def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, d
     step("synthetic target video")
 
     video_run = out / "runs" / "video"
-    dev = resolve_device(device)
-    preset = plan.preset if plan.preset != "auto" else affordable_preset(dev, resolve_precision("auto", dev))
+    preset = resolve_preset(plan.preset, device)
     # The budget is fixed on the first run, so an interrupted demo resumes the training for the minutes it lacks.
     budget_file = out / "runs" / "video_minutes.json"
     if not budget_file.is_file():

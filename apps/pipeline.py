@@ -20,7 +20,6 @@ from pathlib import Path
 import numpy as np
 
 from dancesynth.core.concurrency import read_ahead
-from dancesynth.core.device import resolve_device, resolve_precision
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import check_outputs
 from dancesynth.core.media import SONG_SAMPLE_RATE, VideoWriter, load_song
@@ -32,7 +31,7 @@ from stage1_pose.pretrained import DEFAULT_POSE_MODEL
 from stage2_video.cache import appearance_model_for
 from stage2_video.composite import Compositor, scene_compositor
 from stage2_video.framing import Framing, label_map
-from stage2_video.models.pix2pixhd import affordable_preset
+from stage2_video.presets import resolve_preset
 from stage2_video.render import load_appearance_model, render_layers, target_poses
 from stage2_video.retarget import retarget_onto
 
@@ -160,10 +159,8 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
     segment = song_segment(load_song(song, SONG_SAMPLE_RATE), SONG_SAMPLE_RATE, start, duration)
     pose_model_loaded = load_pose_model(find_pose_run(pose_model, method), device)
     if target is not None:
-        dev = resolve_device(device)
-        name = preset if preset not in (None, "auto") else affordable_preset(dev, resolve_precision(precision, dev))
         video_model = appearance_model_for(target, DEFAULT_TRAIN_MINUTES if train_minutes is None else train_minutes,
-                                           name, cache, device, precision)
+                                           resolve_preset(preset, device, precision), cache, device, precision)
     poses = generate_dance(pose_model_loaded, segment, SONG_SAMPLE_RATE, seed=seed,
                            snap=DEFAULT_SNAP if beat_snap else None)
     appearance = load_appearance_model(video_model, device, precision=precision)

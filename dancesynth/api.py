@@ -38,9 +38,9 @@ def dance(song: PathLike, *, out: PathLike, target: PathLike | None = None, vide
         target: a video of the person; their appearance model is taken from ``cache`` (default
             ``~/.cache/dancesynth/appearance``) or trained now until it has trained ``train_minutes`` in all
             (default 30; a later call with more minutes continues it; 0 renders the person's own pixels warped
-            onto the dance, untrained), at ``preset`` (default ``auto``,
-            ``small`` = 128 px or ``medium`` = 256 px). ``cache``, ``train_minutes`` and ``preset`` go with
-            ``target`` only.
+            onto the dance, untrained), at ``preset`` (one of :data:`stage2_video.presets.PRESETS`, or ``auto``,
+            the default: ``medium`` on GPUs and AMX CPUs, ``small`` elsewhere). ``cache``, ``train_minutes`` and
+            ``preset`` go with ``target`` only.
         video_model: instead of ``target``, a stage-2 run folder (:func:`train_video`).
         pose_model: a stage-1 run folder (:func:`train_pose`) or a folder of runs named by method; None = the
             pose model shipped with dancesynth.
@@ -222,8 +222,8 @@ def train_video(video: PathLike, *, out: PathLike, preset: str = "small", overri
 
     Args:
         out: the run folder (weights, validation.csv, samples/, losses.csv, losses.png).
-        preset: ``small`` (CPU, 128 px) or ``paper`` (1024x512, local enhancer, GPU); ``overrides`` replace
-            fields of it, e.g. ``{"width": 256, "height": 256}``.
+        preset: one of :data:`stage2_video.presets.PRESETS` (``small``: CPU, 128 px; ``medium``: 256 px;
+            ``paper``: 1024x512, local enhancer, GPU); ``overrides`` replace fields of it, e.g. ``{"ngf": 64}``.
         minutes: wall-clock budget of this call; ``epochs``: total epochs. One of them is required.
         resume: continue the run in ``out`` exactly.
         poses: a pose file of ``video`` to use instead of extracting poses.

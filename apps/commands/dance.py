@@ -15,6 +15,7 @@ from apps.arguments import (
     positive_float,
     video_height,
 )
+from stage2_video.presets import describe_presets, preset_names
 
 NAME = "dance"
 HELP = "make a video of the target person dancing to a song"
@@ -55,9 +56,8 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                         "untrained")
     p.add_argument("--cache", type=output_folder, default=None, metavar="DIR",
                    help="with --target: appearance-model cache (default ~/.cache/dancesynth/appearance)")
-    p.add_argument("--preset", choices=("auto", "small", "medium"), default=None,
-                   help="with --target: appearance model size, small = 128 px, medium = 256 px; auto = medium on "
-                        "GPUs and bf16 CPUs, small elsewhere")
+    p.add_argument("--preset", choices=preset_names(auto=True), default=None,
+                   help=f"with --target: the appearance model's preset (default auto); {describe_presets(auto=True)}")
     p.add_argument("--pose-model", default=None, metavar="RUN",
                    help="stage-1 run folder (from train-pose), or a folder of runs named by method "
                         "(default: the built-in Dance Revolution model)")

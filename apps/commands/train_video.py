@@ -15,6 +15,7 @@ from apps.arguments import (
 )
 from apps.config_flags import add_config_arguments, chosen_fields, print_config, resolve_config
 from dancesynth.core.errors import DancesynthError
+from stage2_video.presets import describe_presets, preset_names
 
 NAME = "train-video"
 HELP = "train the appearance model (pix2pixHD + temporal smoothing) on a video of the target person"
@@ -48,8 +49,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="video of the target person (any FFmpeg format)")
     parser.add_argument("--out", type=output_folder, required=True, metavar="RUN_DIR",
                         help="run folder for checkpoints and logs")
-    parser.add_argument("--preset", choices=("paper", "small"), default="small",
-                        help="small: CPU, 128 px, global generator; paper: 1024x512, local enhancer, GPU")
+    parser.add_argument("--preset", choices=preset_names(), default="small",
+                        help=f"the model's preset (default small); {describe_presets()}")
     parser.add_argument("--size", metavar="WxH", help="model resolution override, e.g. 256x256 (multiple of 8)")
     parser.add_argument("--minutes", type=positive_float, help="wall-clock budget of this invocation, in minutes")
     parser.add_argument("--epochs", type=positive_int, help="total epochs (default: the preset's 100 + 100 decaying)")

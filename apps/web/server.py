@@ -2,7 +2,7 @@
 appearance models and jobs (:mod:`apps.web.jobs`).
 
 ```
-GET  /                              the page            GET  /api/config          limits the page checks first
+GET  /                              the page            GET  /api/config          limits, preset menu
 POST /api/uploads (file, kind)      a song or a video   GET  /api/songs           built-in songs (made on first use)
 GET  /api/models                    cached appearance models, with held-out SSIM and training time
 GET  /api/pose-models               the built-in pose model and the stage-1 runs of --pose-models
@@ -75,6 +75,7 @@ from apps.web.uploads import (
     user_message,
 )
 from dancesynth.core.errors import DancesynthError
+from stage2_video.presets import AUTO, AUTO_MEANS, PRESETS, preset_names, resolve_preset
 
 if TYPE_CHECKING:
     from apps.demo import DemoPlan
@@ -86,7 +87,6 @@ SONGS = "songs"
 # Built-in songs: a few, short enough to be made in seconds on first use.
 BUILTIN_SONGS, BUILTIN_SECONDS = 3, 30.0
 SONG_CHECK_RATE = 8000  # Hz: enough to check that a file holds audible sound, and fast
-PRESETS = ("auto", "small", "medium")
 BUILTIN_POSE_MODEL = "built-in (Dance Revolution)"  # stage1_pose.pretrained.DEFAULT_POSE_MODEL
 NO_CACHE = {"Cache-Control": "no-store"}
 # A job request is a flat object of a few short fields; these bound what is read and parsed before it is checked.
@@ -224,6 +224,12 @@ def _number(body: dict, key: str, default: float | None, low: float, high: float
     if not low <= number <= high:
         raise DancesynthError(f"The {what} must be between {low:g} and {high:g}, got {_shown(value)}.")
     return int(number) if integer else number
+
+
+def offered_presets() -> list[dict]:
+    """The appearance-model presets the page's menu offers, ``auto`` first: ``{"name", "label"}`` each."""
+    return [{"name": name, "label": f"{name} ({AUTO_MEANS if name == AUTO else PRESETS[name]})"}
+            for name in preset_names(auto=True)]
 
 
 def _check_types(body: dict) -> None:
@@ -588,17 +594,6 @@ class WebApp:
         return samples[-1]
 
     # --- jobs --------------------------------------------------------------------------------------------
-    def _preset(self, preset: str) -> str:
-        if preset not in PRESETS:
-            raise DancesynthError(f"Unknown preset {preset!r}; choose one of {', '.join(PRESETS)}.")
-        if preset != "auto":
-            return preset
-        from dancesynth.core.device import resolve_device, resolve_precision
-        from stage2_video.models.pix2pixhd import affordable_preset
-
-        device = resolve_device(self.device)
-        return affordable_preset(device, resolve_precision("auto", device))
-
     def _device_flag(self) -> list[str]:
         return [] if self.device == "auto" else ["--device", self.device]
 
@@ -656,7 +651,7 @@ class WebApp:
                 raise DancesynthError("Choose the person: a trained appearance model or an uploaded video.")
             video = self.upload(body["video"], "video")
             minutes = _number(body, "minutes", 30.0, 0.0, 24 * 60, "training budget (minutes)")
-            preset = self._preset(body.get("preset", "auto"))
+            preset = resolve_preset(body.get("preset", AUTO), self.device)
             params.update(target=video["path"], minutes=minutes, preset=preset)
             who = ["--target", video["path"], "--train-minutes", f"{minutes:g}", "--preset", preset,
                    "--cache", str(self.cache)]
@@ -682,7 +677,7 @@ class WebApp:
                 raise DancesynthError("Upload a video of the person, or pick a model to continue.")
             upload = self.upload(body["video"], "video")
             video, name = Path(upload["path"]), upload["name"]
-            preset = self._preset(body.get("preset", "auto"))
+            preset = resolve_preset(body.get("preset", AUTO), self.device)
         entry = entry_path(video, preset, self.cache)
         command = shlex.join(["dancesynth", "train-video", str(video), "--out", str(entry), "--preset", preset,
                               "--minutes", f"{minutes:g}", *(["--resume"] if (entry / "latest.json").is_file() else []),
@@ -774,7 +769,7 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
     @api.get("/config")
     def config() -> dict:
         return {"max_upload_mb": web.max_upload_mb, "max_song_minutes": web.max_song_minutes,
-                "cache": str(web.cache), "data": str(web.data), "device": web.device}
+                "cache": str(web.cache), "data": str(web.data), "device": web.device, "presets": offered_presets()}
 
     @api.post(UPLOADS_ROUTE)
     async def upload(request: Request) -> dict:

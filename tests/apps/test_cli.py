@@ -1,3 +1,4 @@
+import argparse
 import importlib
 import logging
 import pkgutil
@@ -84,3 +85,22 @@ def test_quiet_and_verbose_set_what_reaches_stderr(chatty_command, capsys):
 def test_quiet_and_verbose_together_is_a_usage_error(capsys):
     assert main(["make-dataset", "--out", "x", "-q", "-v"]) != 0
     assert "not allowed with argument" in capsys.readouterr().err
+
+
+def test_every_preset_option_offers_its_model_familys_presets():
+    """Each --preset (and evaluate's --classifier-preset) offers exactly its registry's names, plus auto where the
+    command resolves it; train-pose's depend on --method and are checked when its config is made."""
+    from stage1_pose.models.ren.stgcn import STGCN_PRESETS
+    from stage1_pose.style_classifier import PRESETS as STYLE_PRESETS
+    from stage2_video.models.pix2pixhd import PRESETS as VIDEO_PRESETS
+
+    subcommands = next(a for a in cli.build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    offered = {(command, option): None if action.choices is None else sorted(action.choices)
+               for command, parser in subcommands.choices.items() for action in parser._actions
+               for option in action.option_strings if option.endswith("-preset")}
+    assert offered == {("dance", "--preset"): sorted(["auto", *VIDEO_PRESETS]),
+                       ("train-video", "--preset"): sorted(VIDEO_PRESETS),
+                       ("train-stgcn", "--preset"): sorted(STGCN_PRESETS),
+                       ("train-style-classifier", "--preset"): sorted(STYLE_PRESETS),
+                       ("evaluate", "--classifier-preset"): sorted(STYLE_PRESETS),
+                       ("train-pose", "--preset"): None}

@@ -30,6 +30,7 @@ from dancesynth.core.skeleton import PoseSequence  # noqa: E402
 from stage1_pose.train import train  # noqa: E402
 from stage2_video.cache import SOURCE_FILE, entry_path  # noqa: E402
 from stage2_video.data import video_digest  # noqa: E402
+from stage2_video.presets import preset_names  # noqa: E402
 from stage2_video.synthetic_person import appearance_preset, write_person_video  # noqa: E402
 from stage2_video.train import TrainOptions, train_video  # noqa: E402
 
@@ -294,6 +295,13 @@ def test_jobs_queue_survive_a_reload_show_progress_and_cancel(server, page, brow
     expect(other.locator(f".job[data-job='{second}']")).to_have_class(re.compile(r"\bdone\b"),
                                                                      timeout=JOB_TIMEOUT_MS)
     other.context.close()
+
+
+def test_the_size_menu_offers_every_preset_and_auto(page):
+    page.click("nav button[data-tab=models]")
+    options = page.locator("#train-preset option")
+    assert options.evaluate_all("os => os.map(o => o.value)") == list(preset_names(auto=True))
+    expect(options.first).to_have_text(re.compile(r"^auto \(medium on GPUs"))
 
 
 def test_demo_tab_checks_its_budget(page):

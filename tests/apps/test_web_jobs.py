@@ -14,15 +14,16 @@ from pathlib import Path
 
 import pytest
 import uvicorn
-from web_client import FORM, call, form, wav
+from web_client import FORM, PAGE, call, form, wav
 
 import apps.demo
-from apps.cli import main
+from apps.cli import build_parser, main
 from apps.demo import DemoPlan
 from apps.web.jobs import JobStore, parse_progress
 from apps.web.server import create_app
 from apps.web.tasks import demo_job
 from dancesynth.core.errors import DancesynthError
+from stage2_video.presets import PRESETS, preset_names
 
 
 def test_a_job_left_running_by_a_stopped_server_becomes_interrupted_and_loses_its_partial_outputs(tmp_path):
@@ -114,6 +115,28 @@ def test_a_demo_jobs_command_makes_the_call_the_job_makes(tmp_path, monkeypatch)
             exec(argv[2], {})
         assert calls[-1] == calls[-2] == (str(tmp_path / "data" / "demo"), 2.5, 0, "cpu", plan or DemoPlan())
         web.close()
+
+
+def test_the_commands_of_jobs_at_every_preset_the_page_offers_are_accepted_by_the_cli(tmp_path, monkeypatch):
+    """The page's menu offers the registry's presets and auto; the "Equivalent command" of a training and of a
+    dance at each of them parses (train-video once refused --preset medium), with auto made a named preset."""
+    monkeypatch.chdir(tmp_path)  # the dance command's outputs are relative names
+    app = create_app(tmp_path / "data", tmp_path / "cache", device="cpu")
+    web = app.state.web
+    web.start_cleanup.join(60)
+    video = _upload(tmp_path / "data", "e" * 12, hours_old=0).name
+    song = call(app, "POST", "/api/uploads", FORM, form("song", "song.wav", wav()))[1]["id"]
+    offered = [p["name"] for p in call(app, "GET", "/api/config", PAGE)[1]["presets"]]
+    assert offered == list(preset_names(auto=True))
+    for preset in offered:
+        for body in ({"kind": "train", "video": video, "minutes": 1, "preset": preset},
+                     {"kind": "dance", "song": song, "video": video, "minutes": 1, "preset": preset}):
+            argv = shlex.split(web.create_job(body)["command"])
+            assert argv[0] == "dancesynth"
+            args = build_parser().parse_args(argv[1:])
+            assert args.command == {"train": "train-video", "dance": "dance"}[body["kind"]]
+            assert args.preset in PRESETS and (preset == "auto" or args.preset == preset)
+    web.close()
 
 
 def _running_job(data: Path) -> Path:

@@ -332,6 +332,7 @@ async function refreshJobs() {
 async function main() {
   state.config = await api("/api/config");
   $("#cache-folder").textContent = `in ${state.config.cache} (shared with \`dancesynth dance --target\`)`;
+  $("#train-preset").replaceChildren(...state.config.presets.map(p => el("option", { value: p.name, text: p.label })));
   for (const b of document.querySelectorAll("nav button")) b.addEventListener("click", () => showTab(b.dataset.tab));
   showTab(["dance", "models", "demo"].includes(location.hash.slice(1)) ? location.hash.slice(1) : "dance");
   uploader($("#song-file"), "song", $("#song-status"), () => { $("input[name=song-source][value=upload]").checked = true; });
