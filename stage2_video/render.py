@@ -4,9 +4,9 @@ Poses from elsewhere are first normalised onto the target's canvas (:mod:`stage2
 target statistics stored in the model's JSON), then framed like the training frames, drawn as label maps
 and fed through the generator one frame at a time (each frame conditions the next), so memory stays flat
 for any length. A model conditioned on the warped prior (:mod:`stage2_video.prior`) also warps the person's own
-pixels from its frame bank onto each pose at ``prior_scale`` times its resolution; the network's correction (its
-RGB and mask) is upsampled and painted over that, so frames come out at the prior's size. Before its first
-training step such a model renders the warped prior alone.
+pixels from its frame bank onto each pose at ``prior_scale`` times its resolution; the network's correction (added
+to the prior, or for models saved before 2026-12-05 RGB and a mask painted over it) is upsampled onto that, so
+frames come out at the prior's size. Before its first training step such a model renders the warped prior alone.
 """
 
 from __future__ import annotations
@@ -43,11 +43,16 @@ from stage2_video.models.pix2pixhd import (
     blend,
     blend_base,
     generator_channels,
+    repair,
 )
 from stage2_video.normalize import BodyStats, fit_normalization
 from stage2_video.prior import FrameBank, PriorRenderer, scaled_framing
 from stage2_video.train import KIND
 from stage2_video.winograd import winograd_generator
+
+# A residual model's correction counts as the person where it changes a channel by this much ([-1, 1] scale: 13
+# grey levels); the scene shows through fainter changes (noise of the correction over the background).
+VISIBLE_CHANGE = 0.1
 
 
 class _ChannelsLast(nn.Module):
@@ -165,8 +170,9 @@ class AppearanceModel:
     @torch.inference_mode()
     def step(self, cond: np.ndarray, previous: torch.Tensor | None) -> torch.Tensor:
         """``[H, W, C]`` uint8 condition (:func:`stage2_video.framing.condition`) + previous output ->
-        ``[1, 3, H, W]`` frame in [-1, 1] (for a model conditioned on the warped prior, its raw ``[1, 4, H, W]``
-        output: RGB and mask, see :func:`stage2_video.models.pix2pixhd.blend`)."""
+        ``[1, 3, H, W]`` frame in [-1, 1] (for a model conditioned on the warped prior, its raw output: ``[1, 4, H,
+        W]`` RGB and mask, see :func:`stage2_video.models.pix2pixhd.blend`, or with ``residual`` the ``[1, 3, H,
+        W]`` correction, see :func:`stage2_video.models.pix2pixhd.repair`)."""
         x = to_tensor(cond)[None].to(self.device)
         if self.config.temporal:
             x = torch.cat([x, x.new_zeros(1, IMAGE_CHANNELS, *x.shape[2:]) if previous is None else previous], dim=1)
@@ -191,13 +197,17 @@ class AppearanceModel:
         base_high, alpha = high[:, :IMAGE_CHANNELS].div(127.5).sub(1.0), high[:, IMAGE_CHANNELS:].div(255.0)
         base_low = blend_base(to_tensor(cond)[None].to(self.device), True)
         if self.generator is None:
-            low, frame_high, coverage = base_low, base_high, alpha
+            return base_low, to_image(base_high[0]), alpha[0, 0].cpu().numpy()
+        raw = self.step(cond, previous).to(self.device)
+        raw_high = F.interpolate(raw, size=prior.shape[:2], mode="bilinear", align_corners=False)
+        if self.config.repairs:
+            low, frame_high = repair(raw, base_low), repair(raw_high, base_high)
+            # The person reaches wherever the correction changed the frame visibly, faint changes faded out.
+            mask = (frame_high - base_high).abs().amax(1, keepdim=True).div(VISIBLE_CHANGE).clamp(max=1.0)
         else:
-            raw = self.step(cond, previous).to(self.device)
             low, _ = blend(raw, base_low)
-            raw_high = F.interpolate(raw, size=prior.shape[:2], mode="bilinear", align_corners=False)
             frame_high, mask = blend(raw_high, base_high)
-            coverage = torch.maximum(alpha, mask)
+        coverage = torch.maximum(alpha, mask)
         return low, to_image(frame_high[0]), coverage[0, 0].cpu().numpy()
 
 

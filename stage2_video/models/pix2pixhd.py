@@ -44,14 +44,19 @@ class Pix2PixHDConfig:
             bottleneck. Training turns it on together with ``background``.
         prior: the generator also sees the warped prior (:mod:`stage2_video.prior`: the person's own pixels from the
             nearest training frames moved part by part onto the pose, over the background crop, and its alpha) and
-            ``blend`` paints over that instead of the bare background crop, so even an untrained network shows the
-            real person and training repairs seams, lighting and occlusions. Needs ``blend``.
+            ``blend`` paints over that (or with ``residual`` corrects it) instead of the bare background crop, so
+            even an untrained network shows the real person and training repairs seams, lighting and occlusions.
+            Needs ``blend``.
+        residual: with ``prior``, the network's output is a correction added to the warped prior (its last layer
+            starts at zero, so the untrained network renders the prior exactly and each step moves away from it only
+            where the losses ask) instead of RGB and a mask painted over it.
         prior_scale: the prior is warped at this many times the model's resolution; the network's correction is
             upsampled onto it, so the output keeps the person's detail (rendered at ``prior_scale`` x the size).
         lambda_mask: with ``blend``, L1 weight pulling the mask towards where the real frame differs from the plate
             near the skeleton (:func:`foreground_target`), so the person comes out opaque rather than a
             half-transparent average.
-        lambda_feat, lambda_vgg: weights of discriminator feature matching and the VGG19 perceptual loss.
+        lambda_gan, lambda_feat, lambda_vgg: weights of the adversarial loss, discriminator feature matching and the
+            VGG19 perceptual loss; with the first two at 0 the discriminators do not train.
         lambda_l1: pixel L1 weight; 0 in the paper. The CPU preset uses it because the VGG loss, which
             supplies pix2pixHD's reconstruction signal, needs ImageNet weights that cannot be downloaded here.
         lr, beta1: Adam settings for generator and discriminators.
@@ -74,7 +79,9 @@ class Pix2PixHDConfig:
     background: bool = False
     blend: bool = False
     prior: bool = False
+    residual: bool = False
     prior_scale: int = 2
+    lambda_gan: float = 1.0
     lambda_feat: float = 10.0
     lambda_vgg: float = 10.0
     lambda_l1: float = 10.0
@@ -86,12 +93,24 @@ class Pix2PixHDConfig:
     epochs_decay: int = 100
     val_fraction: float = 0.15
 
+    @property
+    def adversarial(self) -> bool:
+        """The discriminators train and their losses reach the generator (``lambda_gan`` or ``lambda_feat``)."""
+        return self.lambda_gan > 0 or self.lambda_feat > 0
+
+    @property
+    def repairs(self) -> bool:
+        """The generator adds a correction to the warped prior (``prior`` and ``residual``)."""
+        return self.prior and self.residual
+
     def __post_init__(self) -> None:
         if self.blend and not self.background:
             raise DancesynthError("The blend setting paints over the background crop; turn background on with it.")
         if self.prior and not self.blend:
             raise DancesynthError("The prior setting paints over the warped person; turn background and blend on "
                                   "with it.")
+        if self.repairs and self.lambda_mask:
+            raise DancesynthError("A residual generator has no mask; set lambda_mask to 0 with residual.")
         if self.prior_scale < 1:
             raise DancesynthError(f"The prior scale must be 1 or more, got {self.prior_scale}.")
         factor = 2 ** (self.n_downsample + int(self.local_enhancer))
@@ -101,10 +120,11 @@ class Pix2PixHDConfig:
                 "choose a multiple of it.")
 
 
-# The warped prior: the mask is left to the reconstruction losses. Pulled towards where the real frame leaves the
-# prior, it opened wherever limbs were a few pixels off and the person came out striped and half transparent
-# (dancer clip, 5 min: held-out PCK@0.1 0.766 vs 0.793 without it; docs/methods/warped_prior.md).
-_WARPED = {"background": True, "blend": True, "prior": True, "lambda_mask": 0.0}
+# The warped prior, corrected by L1 alone: painted over through a mask, or trained with the discriminators, the
+# network lost the warp's poses within minutes (dancer clip, 10 min: held-out PCK@0.1 0.720 with both, 0.776 with
+# neither and a third more steps; docs/methods/warped_prior.md).
+_WARPED = {"background": True, "blend": True, "prior": True, "residual": True, "lambda_mask": 0.0, "lambda_gan": 0.0,
+           "lambda_feat": 0.0}
 PRESETS: dict[str, Pix2PixHDConfig] = {
     # CPU: global generator only, trains in minutes on a short video; it repairs the warped person (docs/methods).
     "small": Pix2PixHDConfig(**_WARPED),
@@ -309,6 +329,37 @@ def blend(raw: torch.Tensor, base: torch.Tensor) -> tuple[torch.Tensor, torch.Te
     return base + mask * (raw[:, :IMAGE_CHANNELS] - base), mask
 
 
+class PriorRepair(nn.Module):
+    """Adds ``inner``'s output, a correction, to the warped prior in its input (:attr:`Pix2PixHDConfig.residual`).
+
+    ``[B, C, H, W]`` (:func:`generator_channels`) -> ``[B, 3, H, W]``; the last layer starts at zero, so before
+    training the frame is the prior.
+    """
+
+    def __init__(self, inner: GlobalGenerator | LocalEnhancer) -> None:
+        super().__init__()
+        self.inner = inner
+        with torch.no_grad():
+            inner.output_conv.weight.zero_()
+            inner.output_conv.bias.zero_()
+
+    def frame_and_mask(self, x: torch.Tensor) -> tuple[torch.Tensor, None]:
+        """The ``[B, 3, H, W]`` frame, and no mask (a correction has none)."""
+        return repair(self.inner(x), blend_base(x, True)), None
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.frame_and_mask(x)[0]
+
+
+# A correction's range: tanh's [-1, 1] doubled, so it can turn any colour of the prior into any other.
+REPAIR_RANGE = 2.0
+
+
+def repair(raw: torch.Tensor, base: torch.Tensor) -> torch.Tensor:
+    """A residual generator's ``[B, 3, H, W]`` raw output (in [-1, 1]) added to ``base``: the frame (not clipped)."""
+    return base + REPAIR_RANGE * raw
+
+
 # A pixel is foreground where the real frame differs from the plate by this much (0-255 scale: ~25 grey levels)
 # in some channel: above the plate's own error (a median of frames) and the video's noise.
 FOREGROUND_THRESHOLD = 0.2
@@ -331,11 +382,13 @@ def foreground_target(condition: torch.Tensor, real: torch.Tensor, prior: bool =
 def build_generator(config: Pix2PixHDConfig) -> nn.Module:
     """The generator the config describes (input: :func:`generator_channels`)."""
     cin = generator_channels(config)
-    cout = IMAGE_CHANNELS + int(config.blend)
+    cout = IMAGE_CHANNELS + int(config.blend and not config.repairs)
     if config.local_enhancer:
         inner = LocalEnhancer(cin, config.ngf, config.n_downsample, config.n_blocks, config.n_blocks_local, cout)
     else:
         inner = GlobalGenerator(cin, config.ngf, config.n_downsample, config.n_blocks, cout)
+    if config.repairs:
+        return PriorRepair(inner)
     return PlateBlend(inner, config.prior) if config.blend else inner
 
 
@@ -362,7 +415,8 @@ class Pix2PixHD(nn.Module):
 
     def generate_with_mask(self, label: torch.Tensor,
                         previous: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor | None]:
-        """:meth:`generate`'s frame and, with ``blend``, the ``[B, 1, H, W]`` mask it painted the person through."""
+        """:meth:`generate`'s frame and, with ``blend`` (unless it ``repairs``), the ``[B, 1, H, W]`` mask it
+        painted the person through."""
         if self.config.temporal:
             if previous is None:
                 previous = label.new_zeros(label.shape[0], IMAGE_CHANNELS, *label.shape[2:])

@@ -76,6 +76,28 @@ def test_the_prior_model_paints_over_the_warped_person_not_the_plate():
     assert wrong[:, :4].mean() > 0.5 and wrong[:, 4:].sum() == 0
 
 
+def test_a_residual_model_starts_at_the_prior_and_learns_a_correction():
+    cfg = _tiny(background=True, blend=True, prior=True, residual=True, lambda_mask=0.0)
+    assert cfg.repairs and preset("small").repairs and preset("medium").repairs
+    model = Pix2PixHD(cfg)
+    label = torch.rand(2, condition_channels(cfg), 32, 32) * 2 - 1
+    prior = label[:, 6:9]
+    assert torch.equal(model.generate(label), prior)  # untrained: the warp itself, not a blend with noise
+    real = prior.clone()
+    real[:, :, :8] = -1.0  # the warp is wrong in the top rows: they should be black
+    optimizer = torch.optim.Adam(model.generator.parameters(), lr=1e-2)
+    errors = []
+    for _ in range(30):
+        loss = (model.generate(label) - real).abs().mean()
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+        errors.append(loss.item())
+    assert errors[-1] < 0.8 * errors[0]
+    with pytest.raises(DancesynthError, match="lambda_mask"):
+        _tiny(background=True, blend=True, prior=True, residual=True)
+
+
 def test_size_must_divide_by_downsampling():
     with pytest.raises(DancesynthError, match="divisible by 8"):
         preset("small", width=100, height=128)

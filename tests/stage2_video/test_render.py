@@ -89,6 +89,20 @@ def test_a_model_trained_before_the_warped_prior_still_loads_and_renders(tiny_ta
     assert (info.width, info.height, info.num_frames) == (32, 32, 4)
 
 
+def test_a_prior_model_painted_through_a_mask_still_loads_and_renders(tiny_target, tiny_config, tmp_path):
+    video, poses = tiny_target
+    run = tmp_path / "masked"
+    train_video(video, run, "small", TrainOptions(epochs=1, max_steps=1, val_frames=2), poses=poses, device="cpu",
+                overrides={**tiny_config, "residual": False})
+    meta = load_checkpoint(run, "stage2")[1]
+    # Its saved config as written before residual corrections existed.
+    update_meta(run, "stage2", {"config": {k: v for k, v in meta["config"].items() if k != "residual"}})
+    model = load_appearance_model(run, "cpu")
+    assert model.config.prior and not model.config.repairs and model.generator is not None
+    frames = list(render_frames(model, PoseSequence.load(poses).slice_frames(0, 3), normalize=False))
+    assert len(frames) == 3 and frames[0].shape == (64, 64, 3)
+
+
 def test_an_untrained_prior_model_renders_the_warp_alone(tiny_target, tiny_config, tmp_path):
     video, poses = tiny_target
     run = tmp_path / "zero"

@@ -29,12 +29,14 @@ def test_tiny_model_learns_to_reproduce_frames(tiny_target, tiny_config, tmp_pat
     meta = train_video(video, tmp_path, "small", TrainOptions(epochs=6, val_frames=4, sample_every=1000,
                                                               checkpoint_every=1000),
                        poses=poses, device="cpu", precision=precision,
-                       # the network alone: a warped prior would hand it the frames from the first step
-                       overrides={**tiny_config, "lr": 2e-3, "background": False, "blend": False, "prior": False})
+                       # pix2pixHD alone, with its adversarial losses: a warped prior would hand it the frames
+                       overrides={**tiny_config, "lr": 2e-3, "background": False, "blend": False, "prior": False,
+                                  "lambda_gan": 1.0, "lambda_feat": 10.0})
     rows = _rows(tmp_path / "losses.csv")
     l1 = np.array([float(r["g_l1"]) for r in rows])
     assert len(rows) == meta["step"] == 6 * 5
     assert l1[-5:].mean() < 0.6 * l1[:5].mean()
+    assert all(float(r["d"]) > 0 for r in rows)  # the discriminators trained alongside
     assert meta["kind"] == "stage2" and meta["target_stats"] is not None
     for name in ("latest.json", "poses.npz", "losses.png", "validation.csv"):
         assert (tmp_path / name).is_file(), name
