@@ -11,8 +11,12 @@ the two networks on identical inputs (each frame conditioned on the plain run's 
 differences do not compound through the random network's recursion); "unchanged output" means <= 1.
 Weights are random (speed does not depend on them).
 
+``--synthetic-person`` times the synthetic person's renderer instead (:mod:`stage2_video.synthetic_person`, which
+films the demo's and the tests' target videos): frames/s at each size, where 30 is real time for its 30-fps video.
+
     python benchmarks/bench_render.py                      # small and paper presets at 256 and 512 px
     python benchmarks/bench_render.py --presets small --sizes 256 --frames 30 --rounds 7 --threads 2
+    python benchmarks/bench_render.py --synthetic-person --sizes 256 --frames 30
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from stage2_video.data import to_image
 from stage2_video.framing import condition, whole_canvas
 from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig, generator_channels, preset
 from stage2_video.render import AppearanceModel, optimize_generator, render_frames
+from stage2_video.synthetic_person import PersonAppearance, render_person
 
 
 def dancing_poses(frames: int, size: int) -> PoseSequence:
@@ -79,6 +84,24 @@ def max_step_diff(plain: AppearanceModel, fast: AppearanceModel, poses: PoseSequ
     return worst
 
 
+def synthetic_person_fps(poses: PoseSequence, rounds: int) -> list[float]:
+    """Frames/s of :func:`render_person` over ``poses`` in each of ``rounds`` passes, after one untimed pass."""
+    fps = []
+    for _ in range(rounds + 1):
+        start = time.perf_counter()
+        count = sum(1 for _ in render_person(poses, PersonAppearance()))
+        fps.append(count / (time.perf_counter() - start))
+    return fps[1:]
+
+
+def print_synthetic_person(sizes: list[int], frames: int, rounds: int) -> None:
+    """The synthetic person renderer's frames/s at each size: median and range of the rounds."""
+    print(f"{'size':>6}{'synthetic person fps':>22}{'range':>14}")
+    for size in sizes:
+        runs = synthetic_person_fps(dancing_poses(frames, size), rounds)
+        print(f"{size:>6}{float(np.median(runs)):>22.1f}{f'{min(runs):.1f}-{max(runs):.1f}':>14}", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--presets", nargs="+", default=["small", "paper"])
@@ -86,9 +109,14 @@ def main() -> None:
     parser.add_argument("--frames", type=int, default=20, help="frames per measurement (paper preset: a quarter)")
     parser.add_argument("--rounds", type=int, default=5, help="timed rounds per network (median reported)")
     parser.add_argument("--threads", type=int, help="torch CPU threads (default: torch's choice)")
+    parser.add_argument("--synthetic-person", action="store_true",
+                        help="time the synthetic person's renderer at each --sizes instead of the networks")
     args = parser.parse_args()
     if args.threads:
         torch.set_num_threads(args.threads)
+    if args.synthetic_person:
+        print_synthetic_person(args.sizes, args.frames, args.rounds)
+        return
     device = torch.device("cpu")
     print(f"torch {torch.__version__}, {torch.get_num_threads()} threads; CPU shared with other jobs: "
           "absolute numbers vary with their load, the ratio column is the comparison.")

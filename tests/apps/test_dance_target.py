@@ -3,7 +3,6 @@ appearance model cached by the video's content, reused, and continued when more 
 
 import json
 import shutil
-import time
 from pathlib import Path
 
 import numpy as np
@@ -51,10 +50,9 @@ def test_target_trains_once_then_reuses_then_continues(setup, capsys):
     first = _meta(entry)
     assert first["trained_seconds"] >= 3 - 1 and (entry / "background.png").is_file()
 
-    start = time.monotonic()
+    # A cached model renders at once (its time: benchmarks/bench_dance.py --target): no step, no checkpoint.
     assert _dance(song, clip, cache, root / "b.mp4", "0.05") == 0
-    assert time.monotonic() - start < 30, "a cached model starts rendering at once"
-    assert _meta(entry)["save_id"] == first["save_id"], "the cached model was used as it was"
+    assert _meta(entry) == first, "the cached model was used as it was"
 
     # Twice the first budget would be reached already when the first call's last step overran it on a busy CPU.
     assert _dance(song, clip, cache, root / "c.mp4", "0.2") == 0

@@ -48,10 +48,22 @@ def test_line_width_scales_with_image():
 
 
 def test_draw_pose_survives_wild_coordinates():
+    """A joint at NaN is drawn as an absent one; a joint a billion pixels away draws its limb from its neighbour
+    off the canvas towards it; nothing else changes."""
     kp = standing_pose(64, 64)
-    kp[0, :2] = (1e9, -1e9)
-    kp[3, :2] = np.nan
-    draw.draw_pose(np.zeros((64, 64, 3), np.uint8), kp)
+    nose, elbow, neck = JOINT_INDEX["Nose"], JOINT_INDEX["RElbow"], kp[JOINT_INDEX["Neck"], :2]
+    wild, tame = kp.copy(), kp.copy()
+    wild[nose, :2], wild[elbow, :2] = (1e9, -1e9), np.nan
+    tame[[nose, elbow], 2] = 0.0
+    canvas = np.zeros((64, 64, 3), np.uint8)
+    assert draw.draw_pose(canvas, wild) is canvas
+    changed = (canvas != draw.draw_pose(np.zeros_like(canvas), tame)).any(axis=2)
+    ys, xs = np.nonzero(changed)
+    # Only the Neck->Nose limb: up and right from the neck, leaving the top edge where the line to the nose,
+    # clipped to 4 canvases away (256, -256), crosses it.
+    assert (ys <= neck[1] + 2).all() and (xs >= neck[0] - 2).all()
+    top_x = neck[0] + neck[1] * (256 - neck[0]) / (neck[1] + 256)
+    assert changed[0, round(top_x) - 2:round(top_x) + 3].any()
 
 
 def test_skeleton_frames_keep_aspect_ratio_and_write_video(tmp_path):
