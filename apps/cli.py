@@ -5,7 +5,8 @@ Each command module defines ``NAME``, ``HELP`` (one line), ``DESCRIPTION`` (the 
 Command modules import only the standard library at module level (heavy imports go inside ``run``), so
 ``dancesynth --help`` and argument errors come back at once.
 
-Every command takes -q/--quiet (warnings and errors only, no progress) and -v/--verbose (debug messages too).
+Every command takes -q/--quiet (warnings and errors only, no progress) and -v/--verbose (debug messages too, and
+the lines native libraries such as mediapipe write to stderr, hidden otherwise).
 Messages and progress go to stderr through :mod:`logging`; errors end the command with exit status 1.
 """
 
@@ -72,7 +73,7 @@ def _verbosity() -> argparse.ArgumentParser:
     group.add_argument("-q", "--quiet", dest="verbosity", action="store_const", const="quiet",
                        help="show only warnings and errors (no progress)")
     group.add_argument("-v", "--verbose", dest="verbosity", action="store_const", const="verbose",
-                       help="also show debug messages")
+                       help="also show debug messages and native libraries' log lines (mediapipe's)")
     return parent
 
 

@@ -31,7 +31,7 @@ from dancesynth.core.media import read_frames
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence, body_scale, true_runs
 from stage2_video.data import POSES_FILE, cache_file, poses_digest
-from stage2_video.extract import native_logs_hidden_unless_info
+from stage2_video.extract import native_logs_hidden_unless_debug
 from stage2_video.framing import MIN_CONFIDENCE, Framing
 from stage2_video.masks import Segmenter, draw_person, frame_mask, person_mask, torso_length
 
@@ -160,7 +160,7 @@ def background_plate(frames: Iterable[np.ndarray], poses: PoseSequence, max_fram
             pixels, covered = (stack.enter_context(open(p, "wb")) for p in (pixels_path, covered_path))
             segmenter = None
             if segment:
-                stack.enter_context(native_logs_hidden_unless_info())
+                stack.enter_context(native_logs_hidden_unless_debug())
                 segmenter = Segmenter()
                 stack.callback(segmenter.close)
             for t, frame in enumerate(frames):

@@ -103,11 +103,12 @@ def blazepose_to_body25(landmarks: np.ndarray, region: tuple[float, float, float
 
 
 @contextlib.contextmanager
-def native_logs_hidden_unless_info() -> Iterator[None]:
-    """Unless this module logs at INFO (``-q`` turns it off), send what native code writes to the process's
-    stderr to /dev/null: mediapipe's absl and TF Lite lines, which no environment variable or absl setting
-    silences. Python's own messages keep going to the real stderr."""
-    if logger.isEnabledFor(logging.INFO):
+def native_logs_hidden_unless_debug() -> Iterator[None]:
+    """Unless this module logs at DEBUG (``-v``), send what native code writes to the process's stderr to
+    /dev/null: mediapipe's absl and TF Lite lines (a dozen per graph, at its creation and on later inputs), which
+    neither ``GLOG_minloglevel`` nor ``TF_CPP_MIN_LOG_LEVEL`` nor an absl setting silences. Python's own messages
+    keep going to the real stderr."""
+    if logger.isEnabledFor(logging.DEBUG):
         yield
         return
     python_stderr = sys.stderr
@@ -233,7 +234,7 @@ def extract_frames(frames: Iterable[np.ndarray], fps: float, size: tuple[int, in
     """
     config = config or ExtractConfig()
     raw, found = [], []
-    with native_logs_hidden_unless_info(), BlazePose(config.min_visibility, config.crop_size) as estimator:
+    with native_logs_hidden_unless_debug(), BlazePose(config.min_visibility, config.crop_size) as estimator:
         tracker = PersonTracker(estimator, size[0], size[1], config.tracker)
         for frame in track(frames, total=total, desc="extracting poses", unit="frame", disable=not progress):
             pose = tracker.step(frame)

@@ -24,7 +24,7 @@ from dancesynth.core.media import read_frames
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX, NECK, ROOT, PoseSequence, body_scale
 from stage2_video.data import cache_file, framed_key, poses_digest
-from stage2_video.extract import native_logs_hidden_unless_info
+from stage2_video.extract import native_logs_hidden_unless_debug
 from stage2_video.framing import MIN_CONFIDENCE, Framing, VideoFraming
 
 # Person drawing, in torso lengths (Neck-MidHip): limb thickness, head disc radius, hand length past the wrist.
@@ -181,7 +181,7 @@ def cache_masks(video: Path, framing: VideoFraming, run_dir: Path, poses: PoseSe
                                         shape=(len(poses), framing.out_height, framing.out_width))
         count = 0
         segmenter = None
-        with native_logs_hidden_unless_info():
+        with native_logs_hidden_unless_debug():
             segmenter = Segmenter()
             try:
                 for frame in track(read_frames(video), total=len(poses), desc="person masks", unit="frame"):

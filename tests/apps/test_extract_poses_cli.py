@@ -1,5 +1,6 @@
 """`dancesynth extract-poses` end to end on a short video made from a real photo."""
 
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -13,6 +14,8 @@ from dancesynth.core.media import probe_video, write_video
 from dancesynth.core.skeleton import JOINT_INDEX, PoseSequence
 
 NAME = "extract-poses"
+# What mediapipe's native code writes to stderr: absl lines (W0000 12:34:56.789 ... file.cc:114]) and TF Lite's.
+NATIVE = re.compile(r"^[IWEF]\d{4} |\.cc:\d+\]|TensorFlow Lite|absl::", re.MULTILINE)
 
 
 def _person_moving_right(count: int, step: int) -> list[np.ndarray]:
@@ -61,3 +64,19 @@ def test_quiet_shows_only_warnings_not_mediapipe_log_lines(tmp_path, truncated_v
     lines = done.stderr.splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"warning: {video} decoded only"), done.stderr
     assert len(PoseSequence.load(tmp_path / "p.npz")) < 16
+
+
+def test_native_log_lines_are_hidden_unless_verbose(tmp_path):
+    """A normal run's stderr is the tool's own (progress and its result line); -v adds mediapipe's native lines."""
+    video = tmp_path / "clip.mp4"
+    write_video(video, _person_moving_right(4, 10), 12)
+    stderr = {}
+    for flags in ([], ["-v"]):
+        done = subprocess.run([sys.executable, "-m", "apps.cli", NAME, *flags, str(video), "--out",
+                               str(tmp_path / "p.npz")], capture_output=True, text=True, cwd=Path(__file__).parents[2],
+                              timeout=300)
+        assert done.returncode == 0, done.stderr
+        stderr[tuple(flags)] = done.stderr
+    assert not NATIVE.search(stderr[()]), stderr[()]
+    assert stderr[()].splitlines()[-1].startswith(f"Wrote {tmp_path / 'p.npz'}: 4 frames")
+    assert NATIVE.search(stderr[("-v",)]), stderr[("-v",)]
