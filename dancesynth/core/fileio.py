@@ -148,8 +148,8 @@ def check_outputs(outputs: Mapping[str, str | os.PathLike | None],
     path is (e.g. ``"dance video"``, ``"song"``, ``"run folder"``) to the path (None: not given). A
     :class:`DancesynthError` names the output file when it is an input file or folder, an existing file inside an
     input folder, another output, or not a place for a file (:func:`special_file`); it names the output folder
-    when it is an input, holds an input folder, or is no folder (:func:`not_a_folder`). An existing folder is accepted as it
-    is: a run folder is resumed in place.
+    when it is an input, holds an input folder, or is no folder (:func:`not_a_folder`). An existing folder is
+    accepted as it is: a run folder is resumed in place.
     """
     given = {what: path for what, path in outputs.items() if path is not None}
     sources = {what: path for what, path in (inputs or {}).items() if path is not None}
