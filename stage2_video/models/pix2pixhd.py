@@ -120,11 +120,12 @@ class Pix2PixHDConfig:
                 "choose a multiple of it.")
 
 
-# The warped prior, corrected by L1 alone: painted over through a mask, or trained with the discriminators, the
-# network lost the warp's poses within minutes (dancer clip, 10 min: held-out PCK@0.1 0.720 with both, 0.776 with
-# neither and a third more steps; docs/methods/warped_prior.md).
+# The warped prior, corrected by L1 alone in small steps: painted over through a mask, trained with the
+# discriminators or at pix2pixHD's learning rate, the network lost the warp's poses within minutes (dancer clip,
+# held-out PCK@0.1 after 10 min: 0.720 with mask and discriminators; 761 steps: 0.776 at lr 2e-4, 0.794 at 5e-5;
+# docs/methods/warped_prior.md).
 _WARPED = {"background": True, "blend": True, "prior": True, "residual": True, "lambda_mask": 0.0, "lambda_gan": 0.0,
-           "lambda_feat": 0.0}
+           "lambda_feat": 0.0, "lr": 5e-5}
 PRESETS: dict[str, Pix2PixHDConfig] = {
     # CPU: global generator only, trains in minutes on a short video; it repairs the warped person (docs/methods).
     "small": Pix2PixHDConfig(**_WARPED),
