@@ -66,6 +66,8 @@ from dancesynth.core.media import probe_video  # noqa: E402
 from dancesynth.core.skeleton import PoseSequence  # noqa: E402
 from stage2_video.synthetic_person import appearance_preset, write_person_video  # noqa: E402
 
+# The page's HTTP API: URL paths on the server under test, not files.
+JOBS, UPLOADS, CONFIG = "/api/jobs", "/api/uploads", "/api/config"
 LSTM = ["--method", "lstm", "--preview-every", "0", "--device", "cpu", "--set", "hidden=8",
         "--set", "window_frames=30", "--batch-size", "4"]
 # The tiniest appearance model (32x32 px, one block, one epoch): what the server's dance jobs render with.
@@ -305,7 +307,7 @@ def wait_ready(server: Server) -> bool:
     deadline = time.monotonic() + SERVER_START_S
     while time.monotonic() < deadline and server.process.poll() is None:
         with contextlib.suppress(OSError, http.client.HTTPException):
-            if api(server.port, "GET", "/api/jobs")[0] == 200:
+            if api(server.port, "GET", JOBS)[0] == 200:
                 return True
         time.sleep(0.1)
     return False
@@ -361,7 +363,7 @@ def upload_song(port: int, song: Path) -> str:
     body = head + song.read_bytes() + f"\r\n--{BOUNDARY}--\r\n".encode()
     headers = {**page_headers(port), "Content-Type": f"multipart/form-data; boundary={BOUNDARY}",
                "X-File-Name": song.name}
-    status, answer = request(port, "POST", "/api/uploads", headers, body)
+    status, answer = request(port, "POST", UPLOADS, headers, body)
     if status != 200:
         raise RuntimeError(f"the song upload was refused ({status}): {answer}")
     return answer["id"]
@@ -374,7 +376,7 @@ def dance_job(song_id: str, model: str) -> dict:
 
 
 def start_job(port: int, body: dict) -> dict:
-    status, job = api(port, "POST", "/api/jobs", body)
+    status, job = api(port, "POST", JOBS, body)
     if status != 200:
         raise RuntimeError(f"the job was refused ({status}): {job}")
     return job
@@ -384,7 +386,7 @@ def wait_job(port: int, job_id: str, states: tuple[str, ...], timeout: float = J
     """The job once its state is one of ``states`` (or as it is when ``timeout`` seconds have passed)."""
     deadline = time.monotonic() + timeout
     while True:
-        job = api(port, "GET", f"/api/jobs/{job_id}")[1]
+        job = api(port, "GET", f"{JOBS}/{job_id}")[1]
         if job["state"] in states or time.monotonic() > deadline:
             return job
         time.sleep(0.05)
@@ -396,7 +398,7 @@ def job_done(port: int, data: Path, job: dict) -> bool:
         print(f"  job {job['id']}: {job['state']}: {job.get('error')}", flush=True)
         return False
     for name, path in job["outputs"].items():
-        status, _ = request(port, "GET", f"/api/jobs/{job['id']}/files/{name}", page_headers(port))
+        status, _ = request(port, "GET", f"{JOBS}/{job['id']}/files/{name}", page_headers(port))
         if status != 200 or not (data / path).is_file() or (data / path).stat().st_size == 0:
             print(f"  job {job['id']}: output {name} missing ({status})", flush=True)
             return False
@@ -484,7 +486,7 @@ def kill_server_mid_job(work: Path, song: Path, model: str, kills: int, rng: ran
             time.sleep(0.1)
         leftovers = end_orphan(job.get("pid"))
         with running_server(work, data, port, errors):
-            killed = api(port, "GET", f"/api/jobs/{job['id']}")[1]
+            killed = api(port, "GET", f"{JOBS}/{job['id']}")[1]
             again = wait_job(port, start_job(port, dance_job(song_id, model))["id"],
                              ("done", "failed", "cancelled", "interrupted"))
             ok = killed["state"] in ("interrupted", "done", "failed") and job_done(port, data, again)
@@ -508,45 +510,45 @@ def forged_requests(port: int, song_id: str, model: str) -> list[tuple[str, str,
         return json.dumps(value).encode()
 
     return [
-        ("foreign Origin", "POST", "/api/jobs", {**typed, "Origin": "http://evil.example"}, job, 403),
-        ("foreign Referer", "POST", "/api/jobs", {"Host": own, "Content-Type": "application/json",
+        ("foreign Origin", "POST", JOBS, {**typed, "Origin": "http://evil.example"}, job, 403),
+        ("foreign Referer", "POST", JOBS, {"Host": own, "Content-Type": "application/json",
                                                   "Referer": "http://evil.example/page.html"}, job, 403),
-        ("no Origin", "POST", "/api/jobs", {"Host": own, "Content-Type": "application/json"}, job, 403),
-        ("Origin of another port", "POST", "/api/jobs", {**typed, "Origin": f"http://127.0.0.1:{port + 1}"}, job,
+        ("no Origin", "POST", JOBS, {"Host": own, "Content-Type": "application/json"}, job, 403),
+        ("Origin of another port", "POST", JOBS, {**typed, "Origin": f"http://127.0.0.1:{port + 1}"}, job,
          403),
-        ("foreign Host, GET", "GET", "/api/jobs", {"Host": f"evil.example:{port}"}, b"", 403),
-        ("foreign Host, POST", "POST", "/api/jobs", {**typed, "Host": f"evil.example:{port}",
+        ("foreign Host, GET", "GET", JOBS, {"Host": f"evil.example:{port}"}, b"", 403),
+        ("foreign Host, POST", "POST", JOBS, {**typed, "Host": f"evil.example:{port}",
                                                      "Origin": f"http://evil.example:{port}"}, job, 403),
-        ("foreign cancel", "POST", "/api/jobs/20250101-000000-abcdef/cancel",
+        ("foreign cancel", "POST", f"{JOBS}/20250101-000000-abcdef/cancel",
          {**typed, "Origin": "http://evil.example"}, b"", 403),
-        ("foreign upload", "POST", "/api/uploads", {**page, "Origin": "http://evil.example",
+        ("foreign upload", "POST", UPLOADS, {**page, "Origin": "http://evil.example",
                                                     "Content-Type": f"multipart/form-data; boundary={BOUNDARY}"},
          f"--{BOUNDARY}--\r\n".encode(), 403),
-        ("text/plain job", "POST", "/api/jobs", {**page, "Content-Type": "text/plain"}, job, 415),
-        ("form-typed job", "POST", "/api/jobs", {**page, "Content-Type": "application/x-www-form-urlencoded"}, job,
+        ("text/plain job", "POST", JOBS, {**page, "Content-Type": "text/plain"}, job, 415),
+        ("form-typed job", "POST", JOBS, {**page, "Content-Type": "application/x-www-form-urlencoded"}, job,
          415),
-        ("JSON over 64 KB", "POST", "/api/jobs", typed, body({**dance_job(song_id, model), "pad": "x" * 70_000}),
+        ("JSON over 64 KB", "POST", JOBS, typed, body({**dance_job(song_id, model), "pad": "x" * 70_000}),
          413),
-        ("JSON over 64 KB, chunked", "POST", "/api/jobs", typed, [b" " * 65536 for _ in range(16)], 413),
-        ("100,000 nested lists, chunked", "POST", "/api/jobs", typed, [b"[" * 100_000, b"]" * 100_000], 413),
-        ("30,000 nested lists", "POST", "/api/jobs", typed, b"[" * 30_000 + b"]" * 30_000, 400),
-        ("30 nested lists", "POST", "/api/jobs", typed, b"[" * 30 + b"]" * 30, 400),
-        ("not JSON", "POST", "/api/jobs", typed, b"{kind: dance}", 400),
-        ("a JSON list", "POST", "/api/jobs", typed, body([dance_job(song_id, model)]), 400),
-        ("song id a number", "POST", "/api/jobs", typed, body({**dance_job(song_id, model), "song": 5}), 400),
-        ("song id a list", "POST", "/api/jobs", typed, body({**dance_job(song_id, model), "song": [song_id]}), 400),
-        ("song id null", "POST", "/api/jobs", typed, body({**dance_job(song_id, model), "song": None}), 400),
-        ("model id a number", "POST", "/api/jobs", typed, body({**dance_job(song_id, model), "model": 7}), 400),
-        ("model id a list", "POST", "/api/jobs", typed, body({**dance_job(song_id, model), "model": [model]}), 400),
-        ("pose model id a path", "POST", "/api/jobs", typed,
+        ("JSON over 64 KB, chunked", "POST", JOBS, typed, [b" " * 65536 for _ in range(16)], 413),
+        ("100,000 nested lists, chunked", "POST", JOBS, typed, [b"[" * 100_000, b"]" * 100_000], 413),
+        ("30,000 nested lists", "POST", JOBS, typed, b"[" * 30_000 + b"]" * 30_000, 400),
+        ("30 nested lists", "POST", JOBS, typed, b"[" * 30 + b"]" * 30, 400),
+        ("not JSON", "POST", JOBS, typed, b"{kind: dance}", 400),
+        ("a JSON list", "POST", JOBS, typed, body([dance_job(song_id, model)]), 400),
+        ("song id a number", "POST", JOBS, typed, body({**dance_job(song_id, model), "song": 5}), 400),
+        ("song id a list", "POST", JOBS, typed, body({**dance_job(song_id, model), "song": [song_id]}), 400),
+        ("song id null", "POST", JOBS, typed, body({**dance_job(song_id, model), "song": None}), 400),
+        ("model id a number", "POST", JOBS, typed, body({**dance_job(song_id, model), "model": 7}), 400),
+        ("model id a list", "POST", JOBS, typed, body({**dance_job(song_id, model), "model": [model]}), 400),
+        ("pose model id a path", "POST", JOBS, typed,
          body({**dance_job(song_id, model), "pose_model": "../cache"}), 400),
-        ("video id null", "POST", "/api/jobs", typed, body({"kind": "preview", "video": None}), 400),
-        ("video id a list", "POST", "/api/jobs", typed, body({"kind": "train", "video": [1]}), 400),
-        ("kind a number", "POST", "/api/jobs", typed, body({"kind": 3}), 400),
-        ("kind null", "POST", "/api/jobs", typed, body({"kind": None}), 400),
-        ("unknown kind", "POST", "/api/jobs", typed, body({"kind": "shell", "command": "touch pwned"}), 400),
-        ("unknown field", "POST", "/api/jobs", typed, body({**dance_job(song_id, model), "command": "ls"}), 400),
-        ("seed a list", "POST", "/api/jobs", typed, body({**dance_job(song_id, model), "seed": [1]}), 400),
+        ("video id null", "POST", JOBS, typed, body({"kind": "preview", "video": None}), 400),
+        ("video id a list", "POST", JOBS, typed, body({"kind": "train", "video": [1]}), 400),
+        ("kind a number", "POST", JOBS, typed, body({"kind": 3}), 400),
+        ("kind null", "POST", JOBS, typed, body({"kind": None}), 400),
+        ("unknown kind", "POST", JOBS, typed, body({"kind": "shell", "command": "touch pwned"}), 400),
+        ("unknown field", "POST", JOBS, typed, body({**dance_job(song_id, model), "command": "ls"}), 400),
+        ("seed a list", "POST", JOBS, typed, body({**dance_job(song_id, model), "seed": [1]}), 400),
     ]
 
 
@@ -558,18 +560,18 @@ def forged_origins(work: Path, song: Path, model: str) -> Tally:
         uploads = set((data / "uploads").iterdir())
         slowest = (0.0, "")
         for what, method, path, headers, body, expected in forged_requests(port, song_id, model):
-            jobs = len(api(port, "GET", "/api/jobs")[1])
+            jobs = len(api(port, "GET", JOBS)[1])
             started = time.monotonic()
             status, answer = request(port, method, path, headers, body)
             seconds = time.monotonic() - started
             slowest = max(slowest, (seconds, what))
             ok = (status == expected and isinstance(answer, dict) and set(answer) == {"error"}
                   and isinstance(answer["error"], str) and answer["error"].endswith(".") and seconds < 10.0
-                  and len(api(port, "GET", "/api/jobs")[1]) == jobs)
+                  and len(api(port, "GET", JOBS)[1]) == jobs)
             if not ok:
                 print(f"  {what}: {status} (expected {expected}) in {seconds:.1f} s: {str(answer)[:300]}", flush=True)
             tally.add(ok, [], [])
-        alive = api(port, "GET", "/api/config")[0] == 200
+        alive = api(port, "GET", CONFIG)[0] == 200
     tally.note = f"slowest answer {slowest[0]:.2f} s ({slowest[1]})"
     tally.add(alive, errors, temporaries(data) + sorted(map(str, set((data / "uploads").iterdir()) - uploads)))
     return tally
