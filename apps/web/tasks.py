@@ -17,6 +17,7 @@ import os
 import signal
 import sys
 import threading
+import time
 import traceback
 from collections.abc import Callable
 from pathlib import Path
@@ -29,6 +30,8 @@ logger = logging.getLogger(__name__)
 # Often enough that the page's progress moves while a short dance renders.
 PROGRESS_INTERVAL_S = 0.5
 PREVIEW_SECONDS = 5.0
+# Time an orphaned worker has to clean up as on Ctrl-C before it is ended outright.
+ORPHAN_GRACE_S = 5.0
 DEMO_FOLDER = "demo"
 # Files of the demo's folder the page shows (summary.md links to them).
 DEMO_FILES = ("summary.md", "frames.png", "dance.mp4", "skeleton.mp4", "side_by_side.mp4", "target/target.mp4",
@@ -119,9 +122,13 @@ def _terminated(signum: int, frame: object) -> None:
 
 def _exit_with_parent() -> None:
     """End this worker (as a cancel would) when the server that started it is gone, even when it went before
-    this worker got here: the end of multiprocessing's pipe from the parent closes however the parent ends."""
+    this worker got here: the end of multiprocessing's pipe from the parent closes however the parent ends. A
+    worker whose main thread does not reach Python code within :data:`ORPHAN_GRACE_S` (a long native call, an
+    import) is ended outright; the next server deletes the job's files as it marks the job interrupted."""
     multiprocessing.parent_process().join()
     os.kill(os.getpid(), signal.SIGTERM)
+    time.sleep(ORPHAN_GRACE_S)
+    os._exit(130)
 
 
 def run_job(job_dir: str, settings: dict) -> None:
