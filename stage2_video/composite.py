@@ -30,7 +30,7 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import read_frames
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence, body_scale, true_runs
-from stage2_video.data import POSES_FILE, cache_file, poses_digest
+from stage2_video.data import KIND, POSES_FILE, cache_file, poses_digest
 from stage2_video.extract import native_logs_hidden_unless_debug
 from stage2_video.framing import MIN_CONFIDENCE, Framing
 from stage2_video.masks import Segmenter, draw_person, frame_mask, person_mask, torso_length
@@ -215,8 +215,6 @@ def cache_plate(video: Path, poses: PoseSequence, run_dir: Path, segment: bool =
 def load_plate(run_dir: str | os.PathLike) -> np.ndarray:
     """The background plate of an appearance model's run: its ``background.png``, or for a run trained before
     plates were cached, estimated now from its ``poses.npz`` and target video (when that file still exists)."""
-    from stage2_video.train import KIND  # not at module level: train imports cache_plate from here (a cycle)
-
     run_dir = Path(run_dir)
     if (run_dir / PLATE_FILE).is_file():
         return read_plate(run_dir / PLATE_FILE)

@@ -35,6 +35,8 @@ from stage2_video.framing import Framing, VideoFraming, condition, usable_frames
 from stage2_video.prior import FrameBank, PriorRenderer, bank_keypoints, scaled_framing
 
 POSES_FILE = "poses.npz"
+# latest.json's kind of an appearance model's run (stage2_video.train writes it, the readers check it).
+KIND = "stage2"
 # While a frame is learnt, the frame bank returns no frame within this many seconds of it: the network must learn
 # to repair a warp of another moment, as at render time, not to copy its target.
 EXCLUDE_SECONDS = 1.0

@@ -39,6 +39,7 @@ from dancesynth.core.progress import Progress, track
 from dancesynth.core.runs import RunFolder
 from stage2_video.composite import cache_plate
 from stage2_video.data import (
+    KIND,
     FramePairs,
     TargetVideo,
     cache_frames,
@@ -66,7 +67,6 @@ from stage2_video.quality import psnr, ssim
 from stage2_video.retarget import target_bone_lengths
 from stage2_video.vgg import VGGLoss, build_vgg_loss
 
-KIND = "stage2"
 METHOD = "pix2pixhd"
 
 

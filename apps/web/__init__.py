@@ -2,6 +2,6 @@
 
 ``server.py`` is the HTTP API and serves ``static/`` (the page); ``jobs.py`` keeps jobs as JSON files under the
 data folder and runs them one at a time in a spawned worker process; ``tasks.py`` is what a worker runs (dance,
-appearance training, extraction preview, demo); ``uploads.py`` receives uploads as they stream, under names the
-server chooses.
+appearance training, extraction preview, demo); ``job_folder.py`` names the files of a job's folder that both use;
+``uploads.py`` receives uploads as they stream, under names the server chooses.
 """

@@ -28,15 +28,12 @@ import time
 import uuid
 from pathlib import Path
 
+from apps.web.job_folder import JOB_FILE, LOG_FILE, OUT, RESULT_FILE, write_json
+from apps.web.tasks import run_job
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.fileio import atomic_path
 
 JOBS = "jobs"
 LOCK_FILE = "server.lock"
-JOB_FILE = "job.json"
-LOG_FILE = "log.txt"
-RESULT_FILE = "result.json"
-OUT = "out"
 FINISHED = ("done", "failed", "cancelled", "interrupted")
 # Seconds a cancelled worker gets (SIGTERM) to finish its training step, save the appearance model and delete
 # its temporary files before it is killed: one step of the 256-px model takes up to ~10 s on a 2-core CPU.
@@ -67,11 +64,6 @@ def _tail(path: Path) -> str:
     with open(path, "rb") as f:
         f.seek(max(0, path.stat().st_size - LOG_TAIL_BYTES))
         return f.read().decode("utf-8", "replace")
-
-
-def write_json(path: Path, value: dict) -> None:
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(value, indent=2))
 
 
 class DataFolderLock:
@@ -230,8 +222,6 @@ class JobStore:
             self._wake.clear()
 
     def _launch(self, job: dict) -> None:
-        from apps.web.tasks import run_job  # the worker's entry point (its heavy imports happen in the worker)
-
         process = multiprocessing.get_context("spawn").Process(
             target=run_job, args=(str(self.root / job["id"]), self.settings), name=f"dancesynth-job-{job['id']}")
         process.start()

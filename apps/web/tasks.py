@@ -22,8 +22,12 @@ import traceback
 from collections.abc import Callable
 from pathlib import Path
 
-from apps.web.jobs import JOB_FILE, LOG_FILE, OUT, RESULT_FILE, write_json
+from apps.logs import configure_logging
+from apps.web.job_folder import JOB_FILE, LOG_FILE, OUT, RESULT_FILE, write_json
 from apps.web.uploads import user_message
+from dancesynth.core import progress
+from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import os_error_sentence
 
 logger = logging.getLogger(__name__)
 
@@ -133,11 +137,6 @@ def _exit_with_parent() -> None:
 
 def run_job(job_dir: str, settings: dict) -> None:
     """Run the job in ``job_dir`` (the worker process's entry point)."""
-    from apps.cli import configure_logging
-    from dancesynth.core import progress
-    from dancesynth.core.errors import DancesynthError
-    from dancesynth.core.fileio import os_error_sentence
-
     folder = Path(job_dir)
     signal.signal(signal.SIGTERM, _terminated)
     log = open(folder / LOG_FILE, "a", buffering=1)

@@ -10,6 +10,7 @@ import pytest
 
 from apps import cli, commands
 from apps.cli import main
+from apps.logs import configure_logging
 
 COMMANDS = sorted(importlib.import_module(f"apps.commands.{m.name}").NAME
                   for m in pkgutil.iter_modules(commands.__path__))
@@ -67,7 +68,7 @@ def chatty_command(monkeypatch):
 
     monkeypatch.setattr(make_dataset, "run", run)
     yield ["make-dataset", "--out", "unused"]
-    cli.configure_logging(logging.INFO)
+    configure_logging(logging.INFO)
 
 
 def test_quiet_and_verbose_set_what_reaches_stderr(chatty_command, capsys):
