@@ -9,7 +9,8 @@ retrieval). Here, for every pose to render:
    position and scale (each bone's vector in torso lengths, so direction and foreshortening count, plus which face
    points are visible). Each group of parts (head and torso, each arm, each leg) takes its own nearest frame, with
    the bones that face the camera (shoulders, hips, face) in every group's cost so no part comes from a frame
-   facing the other way, and frames whose hands lie on the group's parts costing more. A choice is kept from
+   facing the other way, and frames whose hands lie on the group's parts costing more (an arm too, when its hand
+   lies on the head or torso where the pose's does not: it would carry their pixels away). A choice is kept from
    frame to frame while it stays nearly as good (no flicker), and frames within ``exclude`` of the frame being
    learnt are never returned (the network must learn to repair a warp, not to copy its input).
 2. **Parts** (:func:`part_labels`): the source frame's person mask (:mod:`stage2_video.masks`) is split into head,
@@ -171,28 +172,41 @@ def _distance_to_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndar
     return np.linalg.norm(p - (a + t[:, None] * ab), axis=-1)
 
 
-def occlusion_costs(keypoints: np.ndarray) -> dict[str, np.ndarray]:
-    """Per group, ``[N]`` retrieval cost of ``[N, 25, 3]`` bank poses whose elbows, wrists or hand tips lie on the
-    group's parts (a hand on the face, on the belly or on a thigh would be cut out of them and leave a hole)."""
+def hand_overlaps(keypoints: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
+    """How much each arm's elbow, wrist and hand tip lie on each group's parts, for ``[N, 25, 3]`` poses:
+    ``{arm group: {group: [N]}}``, 0 (clear) to 3 per bone of the group (all three points on it)."""
     kp = np.asarray(keypoints, np.float64)
     torso = torso_lengths(kp)
-    points = []
-    for elbow, wrist in (_R_FOREARM, _L_FOREARM):
+    scale = np.nan_to_num(torso, nan=1.0)
+    overlaps: dict[str, dict[str, np.ndarray]] = {}
+    for arm, (elbow, wrist) in (("right arm", _R_FOREARM), ("left arm", _L_FOREARM)):
         seen = (kp[:, elbow, 2] >= MIN_CONFIDENCE) & (kp[:, wrist, 2] >= MIN_CONFIDENCE)
         forearm = kp[:, wrist, :2] - kp[:, elbow, :2]
         tip = kp[:, wrist, :2] + forearm / np.maximum(np.linalg.norm(forearm, axis=-1), 1e-6)[:, None] * (
             PARTS[-1].extend * np.nan_to_num(torso)[:, None])
-        points += [(kp[:, elbow, :2], seen), (kp[:, wrist, :2], seen), (tip, seen)]
-    costs = {}
-    for group in GROUPS:
-        cost = np.zeros(len(kp))
-        for a, b in OCCLUDED_BONES.get(group, ()):
-            bone = (kp[:, a, 2] >= MIN_CONFIDENCE) & (kp[:, b, 2] >= MIN_CONFIDENCE) & np.isfinite(torso)
-            for point, seen in points:
-                near = _distance_to_segment(point, kp[:, a, :2], kp[:, b, :2]) / np.nan_to_num(torso, nan=1.0)
-                overlap = np.clip(1.0 - near / OCCLUSION_REACH[group], 0.0, 1.0)
-                cost += OCCLUSION_COST * np.where(bone & seen, overlap, 0.0)
-        costs[group] = cost
+        overlaps[arm] = {}
+        for group, bones in OCCLUDED_BONES.items():
+            total = np.zeros(len(kp))
+            for a, b in bones:
+                bone = (kp[:, a, 2] >= MIN_CONFIDENCE) & (kp[:, b, 2] >= MIN_CONFIDENCE) & np.isfinite(torso) & seen
+                for point in (kp[:, elbow, :2], kp[:, wrist, :2], tip):
+                    near = _distance_to_segment(point, kp[:, a, :2], kp[:, b, :2]) / scale
+                    total += np.where(bone, np.clip(1.0 - near / OCCLUSION_REACH[group], 0.0, 1.0), 0.0)
+            overlaps[arm][group] = total
+    return overlaps
+
+
+def occlusion_costs(bank: dict[str, dict[str, np.ndarray]], query: np.ndarray) -> dict[str, np.ndarray]:
+    """Per group, ``[N]`` retrieval cost from the bank's :func:`hand_overlaps` for one ``[25, 3]`` query pose.
+
+    A bank frame whose hand lies on a group's parts would leave a hole where it is cut out of them; a frame whose
+    hand lies on the head or torso where the query's does not would carry their pixels away with the arm."""
+    query_overlaps = hand_overlaps(np.asarray(query)[None])
+    costs = {group: np.zeros_like(bank["right arm"]["core"]) for group in GROUPS}
+    for arm, on in bank.items():
+        for group, overlap in on.items():
+            costs[group] += OCCLUSION_COST * overlap
+        costs[arm] += OCCLUSION_COST * np.maximum(on["core"] - query_overlaps[arm]["core"][0], 0.0)
     return costs
 
 
@@ -436,7 +450,7 @@ class FrameBank:
         self.members = np.asarray(members, np.int64)
         self.size = (frames.shape[2], frames.shape[1])
         self.described = descriptor(self.keypoints[self.members])
-        self.occlusion = occlusion_costs(self.keypoints[self.members])
+        self.overlaps = hand_overlaps(self.keypoints[self.members])
         self._sources: OrderedDict[int, Source] = OrderedDict()
         self._cache_size = cache_size
 
@@ -467,7 +481,8 @@ class FrameBank:
         :data:`HYSTERESIS` of the best.
         """
         costs = group_costs(self.described, query)
-        costs = {g: cost + self.occlusion[g] for g, cost in costs.items()}
+        occlusion = occlusion_costs(self.overlaps, query)
+        costs = {g: cost + occlusion[g] for g, cost in costs.items()}
         allowed = np.ones(len(self.members), bool)
         if exclude is not None:
             allowed = (self.members < exclude[0]) | (self.members >= exclude[1])

@@ -170,6 +170,19 @@ def test_retrieval_prefers_frames_whose_hands_cover_no_part():
     assert bank.retrieve(query)["core"] == 1
 
 
+def test_an_arm_clear_of_the_face_is_not_taken_from_a_frame_whose_hand_lies_on_the_face():
+    query = standing_pose()
+    query[J["RElbow"], :2], query[J["RWrist"], :2] = (48, 26), (54, 12)  # the hand raised beside the head
+    on_face, clear = query.copy(), query.copy()
+    on_face[J["RWrist"], :2] = (60, 20)  # nearer the query's forearm than the other, but the hand on the face
+    clear[J["RWrist"], :2] = (42, 12)
+    bank = _bank(np.stack([on_face, clear]))
+    # Cut from the first frame, the arm would carry the face's pixels with it onto the query's raised arm.
+    assert bank.retrieve(query)["right arm"] == 1
+    query[J["RWrist"], :2] = (61, 21)  # a hand on the face is still taken from a frame that shows one
+    assert bank.retrieve(query)["right arm"] == 0
+
+
 @pytest.mark.parametrize("facing_away", [False, True])
 def test_retrieval_keeps_left_and_right(facing_away):
     front = standing_pose()
