@@ -130,3 +130,12 @@ def add_precision_argument(parser: argparse.ArgumentParser, what: str) -> None:
     parser.add_argument("--precision", choices=("auto", "fp32", "bf16", "fp16"), default="auto",
                         help=f"arithmetic of {what}: auto = bf16 on CPUs with AMX or AVX-512-BF16 and on GPUs "
                              "(fp16 on GPUs without bf16), fp32 elsewhere; fp16 needs CUDA (default auto)")
+
+
+def add_beats_argument(parser: argparse.ArgumentParser) -> None:
+    """``--beats learned|dsp``: the beat tracker for the song (default: the better one on the beat benchmark)."""
+    from stage1_pose.beat_tracking.trackers import BEAT_TRACKERS, DEFAULT_BEAT_TRACKER
+
+    parser.add_argument("--beats", choices=BEAT_TRACKERS, default=DEFAULT_BEAT_TRACKER,
+                        help="beat tracker: learned = a network with a bar decoder (beats and downbeats), dsp = "
+                             f"onset tempograms and dynamic programming (default {DEFAULT_BEAT_TRACKER})")

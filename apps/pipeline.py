@@ -26,6 +26,7 @@ from dancesynth.core.media import SONG_SAMPLE_RATE, VideoWriter, load_song
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence, resample
 from stage1_pose.beat_snap import DEFAULT_SNAP
+from stage1_pose.beat_tracking.trackers import DEFAULT_BEAT_TRACKER
 from stage1_pose.generate import generate_dance, load_pose_model
 from stage1_pose.pretrained import DEFAULT_POSE_MODEL
 from stage2_video.cache import appearance_model_for
@@ -127,7 +128,7 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
           method: str | None = None, seed: int = 0, start: float = 0.0, duration: float | None = None,
           skeleton_preview: str | os.PathLike | None = None, side_by_side: str | os.PathLike | None = None,
           crop: bool = False, height: int | None = None, beat_snap: bool = True, precision: str = "auto",
-          device: str = "auto", progress: bool = True) -> DanceResult:
+          device: str = "auto", progress: bool = True, beats: str = DEFAULT_BEAT_TRACKER) -> DanceResult:
     """Make ``out`` (mp4): the person of ``video_model`` (or of the video ``target``) dancing to ``song``.
 
     Args:
@@ -142,6 +143,7 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
         skeleton_preview: optional mp4 of the dance as a skeleton (same size, with the song).
         side_by_side: optional mp4 of skeleton | generated person (with the song).
         beat_snap: retime the dance onto the song's beats (:mod:`stage1_pose.beat_snap`).
+        beats: the beat tracker, ``learned`` or ``dsp`` (:func:`stage1_pose.beats.song_beats`).
         precision: stage-2 arithmetic, ``auto`` (from the hardware), ``fp32`` or ``bf16``.
     """
     if (video_model is None) == (target is None):
@@ -162,7 +164,7 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
         video_model = appearance_model_for(target, DEFAULT_TRAIN_MINUTES if train_minutes is None else train_minutes,
                                            resolve_preset(preset, device, precision), cache, device, precision)
     poses = generate_dance(pose_model_loaded, segment, SONG_SAMPLE_RATE, seed=seed,
-                           snap=DEFAULT_SNAP if beat_snap else None)
+                           snap=DEFAULT_SNAP if beat_snap else None, tracker=beats)
     appearance = load_appearance_model(video_model, device, precision=precision)
     # The video has the target's frame rate; the dance keeps its timing (resampled in seconds, not frames).
     poses = resample(poses, appearance.fps)

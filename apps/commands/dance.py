@@ -6,6 +6,7 @@ import argparse
 import logging
 
 from apps.arguments import (
+    add_beats_argument,
     add_precision_argument,
     existing_file,
     non_negative_float,
@@ -82,6 +83,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="keep the pose model's own timing instead of retiming its movement beats onto the "
                         "song's beats")
     p.add_argument("--device", default="auto", help="auto (GPU when available), cpu or cuda (default auto)")
+    add_beats_argument(p)
 
 
 def run(args: argparse.Namespace) -> None:
@@ -92,6 +94,7 @@ def run(args: argparse.Namespace) -> None:
                    preset=args.preset, method=args.method, seed=args.seed, start=args.start,
                    duration=args.duration, height=args.height, crop=args.crop,
                    skeleton_preview=args.skeleton_preview, side_by_side=args.side_by_side,
-                   beat_snap=args.beat_snap, precision=args.precision, device=args.device)
+                   beat_snap=args.beat_snap, precision=args.precision, device=args.device,
+                   beats=args.beats)
     logger.info(f"{len(result.poses)} frames at {result.poses.fps:g} fps with the appearance model "
                 f"{result.video_model}; wrote " + ", ".join(map(str, result.written)))

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import logging
 
-from apps.arguments import existing_file, non_negative_int, output_file
+from apps.arguments import add_beats_argument, existing_file, non_negative_int, output_file
 
 NAME = "generate"
 HELP = "generate a dance (BODY_25 pose sequence) for a song with a trained pose model"
@@ -13,7 +13,8 @@ DESCRIPTION = """\
 Generate a dance for SONG (any audio file, any length) with a model trained by `dancesynth train-pose`, or
 without --model the pose model shipped with dancesynth (Dance Revolution, trained on the built-in data).
 The output .npz holds keypoints [T, 25, 3] (x, y in pixels of the training canvas, confidence 1), fps, width,
-height; T = song length x fps. Another --seed gives another dance (for stochastic methods).
+height, and the song's beats and downbeats in seconds (--beats picks the tracker); T = song length x fps.
+Another --seed gives another dance (for stochastic methods).
 --preview writes a skeleton video with the song as its soundtrack.
 
 examples:
@@ -40,12 +41,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="keep the pose model's own timing instead of retiming its movement beats onto the "
                              "song's beats")
     parser.add_argument("--device", default="auto", help="auto, cpu or cuda")
+    add_beats_argument(parser)
 
 
 def run(args: argparse.Namespace) -> None:
     from dancesynth.api import generate
 
     seq = generate(args.song, model=args.model, out=args.out, seed=args.seed, preview=args.preview,
-                   beat_snap=args.beat_snap, precision=args.precision, device=args.device)
+                   beat_snap=args.beat_snap, precision=args.precision, device=args.device, beats=args.beats)
     logger.info(f"wrote {args.out}: {len(seq)} frames at {seq.fps:g} fps ({seq.duration:.1f} s), "
                 f"{seq.width}x{seq.height} canvas" + (f"; preview {args.preview}" if args.preview else ""))

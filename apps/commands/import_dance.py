@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 import logging
 
-from apps.arguments import existing_file, non_negative_int, output_folder, positive_float, positive_int
+from apps.arguments import (
+    add_beats_argument,
+    existing_file,
+    non_negative_int,
+    output_folder,
+    positive_float,
+    positive_int,
+)
 
 NAME = "import-dance"
 HELP = "add a recorded dance (OpenPose JSON folder or AIST++ keypoints) and its song to a dataset folder"
@@ -51,6 +58,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="camera of a multi-view AIST++ array (default 0)")
     parser.add_argument("--id", dest="clip_id", help="clip id (default: the folder or file name)")
     parser.add_argument("--split", choices=("train", "val", "test"), help="split (default: by song)")
+    add_beats_argument(parser)
 
 
 def run(args: argparse.Namespace) -> None:
@@ -65,9 +73,10 @@ def run(args: argparse.Namespace) -> None:
         if missing:
             raise DancesynthError(f"--openpose needs {', '.join(missing)}; OpenPose files do not store them.")
         clip = importers.import_openpose(args.openpose, args.audio, args.out, args.style, args.fps, args.width,
-                                         args.height, clip_id=args.clip_id, split=args.split)
+                                         args.height, clip_id=args.clip_id, split=args.split,
+                                         tracker=args.beats)
     else:
         frame = {k: v for k, v in (("fps", args.fps), ("width", args.width), ("height", args.height)) if v is not None}
         clip = importers.import_aistpp(args.aistpp, args.audio, args.out, style=args.style, view=args.view,
-                                       clip_id=args.clip_id, split=args.split, **frame)
+                                       clip_id=args.clip_id, split=args.split, tracker=args.beats, **frame)
     logger.info(f"added clip {clip.id} (style {clip.style}, split {clip.split}) to {args.out}")

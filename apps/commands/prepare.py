@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import logging
 
-from apps.arguments import output_folder, positive_float
+from apps.arguments import add_beats_argument, output_folder, positive_float
 
 NAME = "prepare"
 HELP = "turn a folder of real dance videos (style = sub-folder name) into a stage-1 training dataset"
@@ -40,6 +40,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="length of the clips each video is cut into, in seconds (default 60)")
     parser.add_argument("--default-style", default="dance",
                         help="style of the videos directly in VIDEOS_DIR (default 'dance')")
+    add_beats_argument(parser)
 
 
 def run(args: argparse.Namespace) -> None:
@@ -48,7 +49,7 @@ def run(args: argparse.Namespace) -> None:
     from dancesynth.core.fileio import check_outputs
 
     check_outputs({}, {"videos folder": args.videos_dir}, folders={"dataset folder": args.out})
-    report = prepare_videos(args.videos_dir, args.out, args.clip_seconds, args.default_style)
+    report = prepare_videos(args.videos_dir, args.out, args.clip_seconds, args.default_style, tracker=args.beats)
     for video, reason in report.skipped.items():
         logger.warning(f"skipped {video}: {reason}")
     if not report.added and not report.already_there:

@@ -124,11 +124,13 @@ class PoseSequence:
         """Frames ``start:stop`` (frame indices, not seconds)."""
         return self.replace(self.keypoints[start:stop].copy())
 
-    def save(self, path: str | os.PathLike) -> None:
-        """Write an ``.npz`` (keys: keypoints, fps, width, height, layout) atomically."""
+    def save(self, path: str | os.PathLike, **extra: np.ndarray) -> None:
+        """Write an ``.npz`` (keys: keypoints, fps, width, height, layout, plus ``extra`` arrays, e.g. the song's
+        beat times; :meth:`load` ignores them) atomically."""
         with atomic_path(path) as tmp, open(tmp, "wb") as f:
             np.savez(f, keypoints=self.keypoints, fps=np.float64(self.fps),
-                     width=np.int64(self.width), height=np.int64(self.height), layout=np.str_("BODY_25"))
+                     width=np.int64(self.width), height=np.int64(self.height), layout=np.str_("BODY_25"),
+                     **{k: np.asarray(v) for k, v in extra.items()})
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> "PoseSequence":

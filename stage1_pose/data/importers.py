@@ -1,9 +1,10 @@
 """Add real recordings to a dataset folder: OpenPose JSON folders and AIST++ 2D keypoints, each with its song.
 
 Both importers resample the dance to the dataset layout's ``POSE_FPS`` (15 fps), decode the song to its
-``SAMPLE_RATE`` (22050 Hz) mono, trim both to their common length, track the song's beats (source ``tracked``)
-and append one clip to the manifest, creating the dataset folder when it does not exist. A song is identified
-by a hash of its samples, so several dances to one song share its split.
+``SAMPLE_RATE`` (22050 Hz) mono, trim both to their common length, track the song's beats and downbeats
+(source ``tracked``; tracker ``learned`` or ``dsp``, :func:`stage1_pose.beats.song_beats`) and append one clip
+to the manifest, creating the dataset folder when it does not exist. A song is identified by a hash of its
+samples, so several dances to one song share its split.
 
 AIST++ publishes its 2D keypoints as Python pickles, which this project never unpickles (a pickle can run
 code). Convert each file once, in a Python session you trust, to a NumPy array::
@@ -27,7 +28,7 @@ import numpy as np
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import require_file
 from dancesynth.core.skeleton import COCO17_TO_BODY25, PoseSequence, from_partial, resample
-from stage1_pose.beats import track_beats
+from stage1_pose.beats import DEFAULT_BEAT_TRACKER, song_beats
 from stage1_pose.data.layout import (
     MANIFEST,
     POSE_FPS,
@@ -42,7 +43,6 @@ from stage1_pose.data.layout import (
     write_beats,
     write_manifest,
 )
-from stage1_pose.data.synth_music import BEATS_PER_BAR
 from stage1_pose.features import num_pose_frames
 
 # AIST++ genre codes (the "g.." part of a sequence name) and the dance genres they stand for.
@@ -53,7 +53,7 @@ _ID_CHARS = re.compile(r"[^A-Za-z0-9_.-]+")
 
 
 def add_clip(out_dir: str | os.PathLike, poses: PoseSequence, song_path: str | os.PathLike, style: str,
-             clip_id: str, split: str | None = None) -> Clip:
+             clip_id: str, split: str | None = None, tracker: str = DEFAULT_BEAT_TRACKER) -> Clip:
     """Append a (dance, song file) pair to the dataset folder ``out_dir`` (created if needed) and return its clip.
 
     Args:
@@ -63,15 +63,18 @@ def add_clip(out_dir: str | os.PathLike, poses: PoseSequence, song_path: str | o
         clip_id: the new clip's id (letters, digits, ``_.-``); must not be in the dataset yet.
         split: ``train``, ``val`` or ``test``; default: the split of this song's other clips, or a stable
             80/10/10 choice by song.
+        tracker: the beat tracker, ``learned`` or ``dsp`` (:data:`stage1_pose.beats.BEAT_TRACKERS`).
     """
     from dancesynth.core.media import load_song
 
     _check_split(split)
-    return add_clip_samples(out_dir, poses, load_song(song_path, SAMPLE_RATE), style, clip_id, split)
+    return add_clip_samples(out_dir, poses, load_song(song_path, SAMPLE_RATE), style, clip_id, split,
+                            tracker=tracker)
 
 
 def add_clip_samples(out_dir: str | os.PathLike, poses: PoseSequence, samples: np.ndarray, style: str,
-                     clip_id: str, split: str | None = None, song: str | None = None) -> Clip:
+                     clip_id: str, split: str | None = None, song: str | None = None,
+                     tracker: str = DEFAULT_BEAT_TRACKER) -> Clip:
     """:func:`add_clip` for a song already decoded: mono ``[N]`` float samples at the dataset's 22050 Hz.
 
     Args:
@@ -104,9 +107,8 @@ def add_clip_samples(out_dir: str | os.PathLike, poses: PoseSequence, samples: n
     paths = clip_paths(clip_id)
     write_audio(root / paths["audio"], samples, SAMPLE_RATE)
     poses.save(root / paths["poses"])
-    bpm, beats = track_beats(samples, SAMPLE_RATE)
-    # A tracker gives no bar positions; every fourth beat from the first is the usual 4/4 guess.
-    write_beats(root / paths["beats"], beats, beats[::BEATS_PER_BAR], bpm, "tracked")
+    tracked = song_beats(samples, SAMPLE_RATE, tracker)
+    write_beats(root / paths["beats"], tracked.beats, tracked.downbeats, tracked.bpm, "tracked")
     clip = Clip(id=clip_id, song=song, style=style, split=split, **paths)
     write_manifest(root, POSE_FPS, SAMPLE_RATE, styles + ([style] if style not in styles else []), clips + [clip])
     return clip
@@ -124,7 +126,7 @@ def song_id(samples: np.ndarray) -> str:
 
 def import_openpose(json_folder: str | os.PathLike, audio_path: str | os.PathLike, out_dir: str | os.PathLike,
                     style: str, fps: float, width: int, height: int, clip_id: str | None = None,
-                    split: str | None = None) -> Clip:
+                    split: str | None = None, tracker: str = DEFAULT_BEAT_TRACKER) -> Clip:
     """Import an OpenPose ``*_keypoints.json`` folder (one file per video frame, BODY_25 or COCO-18) and the
     song of that video into the dataset folder ``out_dir``.
 
@@ -135,7 +137,7 @@ def import_openpose(json_folder: str | os.PathLike, audio_path: str | os.PathLik
     from dancesynth.core.openpose_io import load_openpose_folder
 
     poses = load_openpose_folder(json_folder, fps, width, height)
-    return add_clip(out_dir, poses, audio_path, style, clip_id or Path(json_folder).name, split)
+    return add_clip(out_dir, poses, audio_path, style, clip_id or Path(json_folder).name, split, tracker)
 
 
 def load_aistpp_keypoints(path: str | os.PathLike, view: int = 0) -> np.ndarray:
@@ -178,7 +180,8 @@ def load_aistpp_keypoints(path: str | os.PathLike, view: int = 0) -> np.ndarray:
 
 def import_aistpp(keypoints2d_file: str | os.PathLike, audio_path: str | os.PathLike, out_dir: str | os.PathLike,
                   style: str | None = None, view: int = 0, fps: float = AIST_FPS, width: int = AIST_WIDTH,
-                  height: int = AIST_HEIGHT, clip_id: str | None = None, split: str | None = None) -> Clip:
+                  height: int = AIST_HEIGHT, clip_id: str | None = None, split: str | None = None,
+                  tracker: str = DEFAULT_BEAT_TRACKER) -> Clip:
     """Import one AIST++ sequence: converted 2D keypoints (see the module docstring; COCO-17 at 60 fps on
     1920x1080 by default) and its music file, mapped to BODY_25 and resampled to 15 fps.
 
@@ -196,4 +199,4 @@ def import_aistpp(keypoints2d_file: str | os.PathLike, audio_path: str | os.Path
         style = AIST_GENRES[code]
     points = load_aistpp_keypoints(keypoints2d_file, view)
     poses = from_partial(points, COCO17_TO_BODY25, fps, width, height)
-    return add_clip(out_dir, poses, audio_path, style, clip_id or name, split)
+    return add_clip(out_dir, poses, audio_path, style, clip_id or name, split, tracker)

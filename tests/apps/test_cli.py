@@ -105,3 +105,21 @@ def test_every_preset_option_offers_its_model_familys_presets():
                        ("train-style-classifier", "--preset"): sorted(STYLE_PRESETS),
                        ("evaluate", "--classifier-preset"): sorted(STYLE_PRESETS),
                        ("train-pose", "--preset"): None}
+
+
+def test_every_command_that_tracks_beats_offers_both_trackers(tmp_path, capsys):
+    """--beats is on generate, dance, prepare and import-dance, with the same choices and default; a wrong name is
+    one line and exit 1."""
+    from stage1_pose.beat_tracking.trackers import BEAT_TRACKERS, DEFAULT_BEAT_TRACKER
+
+    subcommands = next(a for a in cli.build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    offered = {command: (tuple(action.choices), action.default) for command, parser in subcommands.choices.items()
+               for action in parser._actions if "--beats" in action.option_strings}
+    assert offered == {c: (BEAT_TRACKERS, DEFAULT_BEAT_TRACKER) for c in ("dance", "generate", "import-dance",
+                                                                            "prepare")}
+    song = tmp_path / "song.wav"
+    song.write_bytes(b"RIFF")
+    out = str(tmp_path / "p.npz")
+    assert cli.build_parser().parse_args(["generate", str(song), "--out", out, "--beats", "dsp"]).beats == "dsp"
+    assert cli.main(["generate", str(song), "--out", out, "--beats", "oracle"]) == 1
+    assert "invalid choice: 'oracle'" in capsys.readouterr().err

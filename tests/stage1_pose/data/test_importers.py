@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import soundfile
@@ -9,6 +11,8 @@ import soundfile
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.openpose_io import save_openpose_folder
 from dancesynth.core.skeleton import COCO17_TO_BODY25, PoseSequence
+from stage1_pose.beats import SongBeats
+from stage1_pose.data import importers
 from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.data.importers import import_aistpp, import_openpose, load_aistpp_keypoints
 
@@ -93,3 +97,31 @@ def test_importer_errors(tmp_path):
         import_aistpp(tmp_path / "views.npy", tmp_path / "none.wav", tmp_path / "ds")
     with pytest.raises(DancesynthError, match="Unknown split"):
         import_aistpp(tmp_path / "views.npy", tmp_path / "none.wav", tmp_path / "ds", style="x", split="dev")
+
+
+def test_importers_write_the_trackers_downbeats(tmp_path, monkeypatch):
+    """The chosen tracker's beats, downbeats and tempo reach beats/<id>.json."""
+    calls = []
+
+    def fake(samples, sr, tracker):
+        calls.append(tracker)
+        return SongBeats(np.array([0.5, 1.0, 1.5, 2.0]), np.array([0.5, 2.0]), 120.0)
+
+    monkeypatch.setattr(importers, "song_beats", fake)
+    save_openpose_folder(_moving_pose(90, 30.0), tmp_path / "take")
+    clip = import_openpose(tmp_path / "take", _song(tmp_path / "song.wav", 3.0), tmp_path / "ds", "salsa", 30.0,
+                           1280, 720, tracker="dsp")
+    beats = DanceDataset(tmp_path / "ds").load_beats(clip)
+    assert calls == ["dsp"]
+    assert list(beats["downbeats"]) == [0.5, 2.0] and beats["tempo"] == 120.0 and beats["source"] == "tracked"
+
+
+def test_imported_real_song_gets_bars_from_the_learned_tracker(tmp_path):
+    """The committed real excerpt (4/4 rock): downbeats every fourth tracked beat."""
+    song = Path(__file__).parents[2] / "data" / "real_song" / "escape_from_chaosland_40-65s.ogg"
+    save_openpose_folder(_moving_pose(750, 30.0), tmp_path / "take")
+    clip = import_openpose(tmp_path / "take", song, tmp_path / "ds", "rock", 30.0, 1280, 720)
+    beats = DanceDataset(tmp_path / "ds").load_beats(clip)
+    assert len(beats["downbeats"]) >= 8 and np.all(np.isin(beats["downbeats"], beats["beats"]))
+    assert np.all(np.diff(np.searchsorted(beats["beats"], beats["downbeats"])) == 4)
+

@@ -1,0 +1,189 @@
+"""Train the learned beat and downbeat tracker (:mod:`stage1_pose.beat_tracking`) on audio with exact grids that
+needs no labelling, and write the model the package ships.
+
+    .venv/bin/python benchmarks/beat_benchmark.py fetch        # once: packages, renderer, the benchmark's pieces
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_beat_tracker.py corpus   # renders the corpus (~15 min)
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_beat_tracker.py train --minutes 45 \\
+        --out stage1_pose/pretrained/beat_tracker                                  # renders what is missing first
+
+It lives beside the benchmark because it reuses the benchmark's packages, renderer and loaders and needs the same
+system tools (``fluidsynth``, ``fluid-soundfont-gm``; ``mma`` and the scores come from the fetched packages), which
+users of the product do not have. The corpus (``--corpus``, default ``~/.cache/dancesynth/beat-train``) holds one
+``.npz`` per song: log-mel frames (float16 ``[T, 64]``) and its beat and downbeat times in seconds.
+
+Sources, none of them a test-half piece or made from one:
+
+* MMA grooves (``mma``'s library, GPL-2.0+) at random tempi (log-uniform 60-190 BPM): a song of about
+  ``_MMA_SECONDS`` s of chords in one groove, written to MIDI by MMA (the benchmark's :func:`mma_song`), rendered by
+  fluidsynth with a random gain, reverb room and level. Kept when its MIDI time signatures are x/4 with x in 2-4
+  (the grid is then exact; MMA writes 6/8 loosely). Library files a test piece plays from are left out, grooves and
+  all.
+* MMA's example songs (``mma``'s documentation, GPL-2.0+) whose ``.mma`` plays no groove of those files, and the
+  OpenTTD OpenMSX pieces the benchmark does not hold (GPL-2.0), rendered the same way, grids from their MIDI time
+  signatures.
+* The benchmark's dev half as it is (recordings and renderings); never its test half.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from beat_benchmark import (  # noqa: E402
+    _MMA_EXAMPLES,
+    _MMA_LIB,
+    _OPENMSX,
+    DEFAULT_CACHE,
+    PIECES,
+    SPLIT,
+    Piece,
+    load_audio,
+    midi_grid,
+    piece_midi,
+    render_midi,
+)
+
+DEFAULT_CORPUS = Path.home() / ".cache" / "dancesynth" / "beat-train"
+_MMA_SONGS = 240
+_MMA_SECONDS = 30.0
+_MMA_BPM = (60.0, 190.0)
+_SEED = 0
+
+
+def _groove_names(path: Path) -> list[str]:
+    """Grooves an MMA library file defines (``DefGroove NAME``)."""
+    return re.findall(r"^\s*DefGroove\s+(\S+)", path.read_text(errors="replace"), re.MULTILINE | re.IGNORECASE)
+
+
+def _test_libraries() -> set[str]:
+    """MMA library files (package paths) that test-half pieces play from."""
+    return {p.path for p in PIECES if p.source == "mma" and SPLIT[p.id] == "test"}
+
+
+def _simple_metre(mid: Path) -> bool:
+    """True when every time signature of the MIDI file is 2/4, 3/4 or 4/4 (or it has none)."""
+    import mido
+
+    sigs = [m for track in mido.MidiFile(mid).tracks for m in track if m.type == "time_signature"]
+    return all(m.denominator == 4 and m.numerator in (2, 3, 4) for m in sigs)
+
+
+def _render_options(rng: np.random.Generator) -> tuple[float, list[str]]:
+    """A random fluidsynth gain and reverb: the same notes heard at other levels and in other rooms."""
+    return float(rng.uniform(0.15, 0.5)), [f"synth.reverb.room-size={rng.uniform(0.0, 0.9):.2f}",
+                                           f"synth.reverb.level={rng.uniform(0.0, 0.9):.2f}"]
+
+
+def _save(path: Path, samples: np.ndarray, beats: np.ndarray, downbeats: np.ndarray) -> None:
+    from stage1_pose.beat_tracking.features import mel_frames
+
+    end = len(samples) / 22050
+    beats, downbeats = beats[beats < end], downbeats[downbeats < end]
+    tmp = path.with_suffix(".part.npz")
+    np.savez(tmp, mel=mel_frames(samples, 22050).astype(np.float16), beats=beats, downbeats=downbeats)
+    tmp.rename(path)
+    print(f"{path.stem:50s} {len(samples) / 22050:6.1f} s {len(beats):4d} beats", flush=True)
+
+
+def _midi_item(out: Path, mid: Path, tmp: Path, rng: np.random.Generator, max_seconds: float = 120.0) -> None:
+    gain, options = _render_options(rng)
+    samples = render_midi(mid, tmp, gain, 22050, options)[:int(max_seconds * 22050)]
+    beats, downbeats, _ = midi_grid(mid)
+    _save(out, samples, beats, downbeats)
+
+
+def build_corpus(cache: Path, corpus: Path) -> list[Path]:
+    """Render every corpus song not yet in ``corpus`` and return all of their files."""
+    corpus.mkdir(parents=True, exist_ok=True)
+    pkgs = cache / "pkgs"
+    rng = np.random.default_rng(_SEED)
+    test_libs = _test_libraries()
+    test_grooves = {g.lower() for lib in test_libs for g in _groove_names(pkgs / "mma" / lib)}
+    libraries = sorted(p for p in (pkgs / "mma" / _MMA_LIB).glob("*/*.mma")
+                       if str(p.relative_to(pkgs / "mma")) not in test_libs)
+    grooves = [(lib, g) for lib in libraries for g in _groove_names(lib)]
+    picks = rng.choice(len(grooves), size=min(_MMA_SONGS, len(grooves)), replace=False)
+    files = []
+    for n in sorted(picks):
+        lib, groove = grooves[n]
+        bpm = float(np.exp(rng.uniform(*np.log(_MMA_BPM))))
+        gain_options = _render_options(rng)
+        out = corpus / f"mma-{lib.parent.name}-{groove}.npz"
+        if not out.exists():
+            piece = Piece(out.stem, (), "mma", str(lib.relative_to(pkgs / "mma")), "GPL-2.0-or-later", "mma",
+                          groove, round(bpm, 1))
+            with tempfile.TemporaryDirectory() as tmp:
+                try:
+                    mid = piece_midi(cache, piece, Path(tmp), _MMA_SECONDS)
+                except Exception as error:  # MMA refuses a few library grooves on their own; they are skipped.
+                    print(f"{out.stem}: MMA failed ({type(error).__name__})", flush=True)
+                    continue
+                if not _simple_metre(mid):
+                    continue
+                samples = render_midi(mid, Path(tmp), gain_options[0], 22050, gain_options[1])
+                beats, downbeats, _ = midi_grid(mid)
+                _save(out, samples, beats, downbeats)
+        files.append(out)
+    benchmark_files = {p.path for p in PIECES}
+    for mma in sorted((pkgs / "mma" / _MMA_EXAMPLES).glob("*/*.mma")):
+        mid = mma.with_suffix(".mid")
+        used = {g.lower() for g in re.findall(r"^\s*Groove\s+(\S+)", mma.read_text(errors="replace"),
+                                               re.MULTILINE | re.IGNORECASE)}
+        if not mid.exists() or used & test_grooves or str(mid.relative_to(pkgs / "mma")) in benchmark_files:
+            continue
+        out = corpus / f"example-{mma.parent.name}-{mma.stem}.npz"
+        if not out.exists() and _simple_metre(mid):
+            with tempfile.TemporaryDirectory() as tmp:
+                _midi_item(out, mid, Path(tmp), rng)
+        files.append(out)
+    for mid in sorted((pkgs / "openttd-openmsx" / _OPENMSX).glob("*.mid")):
+        if str(mid.relative_to(pkgs / "openttd-openmsx")) in benchmark_files:
+            continue
+        out = corpus / f"openmsx-{mid.stem}.npz"
+        if not out.exists() and _simple_metre(mid):
+            with tempfile.TemporaryDirectory() as tmp:
+                _midi_item(out, mid, Path(tmp), rng)
+        files.append(out)
+    for piece in PIECES:
+        if SPLIT[piece.id] != "dev":
+            continue
+        out = corpus / f"dev-{piece.id}.npz"
+        if not out.exists():
+            info = json.loads((cache / "audio" / f"{piece.id}.json").read_text())
+            _save(out, load_audio(cache / "audio" / f"{piece.id}.flac"), np.array(info["beats"]),
+                  np.array(info["downbeats"]))
+        files.append(out)
+    return [f for f in files if f.exists()]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("command", choices=("corpus", "train"))
+    parser.add_argument("--cache", type=Path, default=DEFAULT_CACHE, help="the benchmark's cache (after fetch)")
+    parser.add_argument("--corpus", type=Path, default=DEFAULT_CORPUS)
+    parser.add_argument("--out", type=Path, default=Path("stage1_pose/pretrained/beat_tracker"))
+    parser.add_argument("--minutes", type=float, default=45.0, help="train: wall-clock training budget")
+    parser.add_argument("--preset", default="small")
+    args = parser.parse_args()
+    if not (args.cache / "pkgs" / "mma").is_dir():
+        raise SystemExit(f"No packages in {args.cache}: run `beat_benchmark.py fetch` first.")
+    files = build_corpus(args.cache, args.corpus)
+    print(f"corpus: {len(files)} songs in {args.corpus}", flush=True)
+    if args.command == "train":
+        from stage1_pose.beat_tracking.train import TrainConfig, load_corpus, save, train
+
+        model, log = train(load_corpus(files), args.preset, TrainConfig(minutes=args.minutes), args.out)
+        save(model, args.out, {"corpus_songs": len(files), **log})
+        print(f"wrote {args.out}", flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,62 @@
+"""The learned tracker end to end: log-mel frames -> network activations -> bar-pointer Viterbi -> beat and
+downbeat times in seconds.
+
+The network runs at ``FPS`` (100.2 frames per second); the decoder at half that (activations max-pooled over
+frame pairs: the Viterbi pass costs a quarter), and each decoded beat then moves to the strongest activation among
+the full-rate frames around it, so times keep the 10-ms grid.
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from stage1_pose.beat_tracking.decoder import DEFAULT_DECODER, Decoded, DecoderConfig, decode
+from stage1_pose.beat_tracking.features import FPS, mel_frames, network_input
+from stage1_pose.beat_tracking.model import BeatTCN, load_model
+
+PRETRAINED = Path(__file__).resolve().parent.parent / "pretrained" / "beat_tracker"
+_POOL = 2
+
+
+@functools.lru_cache(maxsize=1)
+def pretrained_model() -> BeatTCN:
+    """The shipped network (``stage1_pose/pretrained/beat_tracker``), loaded once."""
+    return load_model(PRETRAINED)
+
+
+def activations(samples: np.ndarray, sr: int, model: BeatTCN | None = None) -> np.ndarray:
+    """``[T, 3]`` float32 class probabilities (none, beat, downbeat) per frame at ``FPS`` of a mono ``[N]`` song
+    at ``sr`` Hz (``model``: default the shipped one)."""
+    model = model or pretrained_model()
+    x = torch.from_numpy(network_input(mel_frames(samples, sr)))[None]
+    with torch.inference_mode():
+        return torch.softmax(model(x)[0], dim=-1).numpy()
+
+
+def decode_activations(probs: np.ndarray, config: DecoderConfig = DEFAULT_DECODER) -> Decoded:
+    """Beats and downbeats (seconds) of ``[T, 3]`` probabilities at ``FPS``: decoded at ``FPS / 2``, refined at
+    ``FPS``."""
+    frames = len(probs) // _POOL * _POOL
+    pooled = probs[:frames].reshape(-1, _POOL, 3).max(axis=1)
+    coarse = decode(pooled[:, 1], pooled[:, 2], FPS / _POOL, config)
+    strength = probs[:, 1] + probs[:, 2]
+
+    def refine(times: np.ndarray) -> np.ndarray:
+        centre = np.round(times * FPS).astype(np.int64)
+        window = np.clip(centre[:, None] + np.arange(-_POOL, _POOL + 1)[None, :], 0, len(probs) - 1)
+        return window[np.arange(len(window)), strength[window].argmax(axis=1)] / FPS
+
+    beats = refine(coarse.beats)
+    downbeats = beats[np.isin(np.round(coarse.beats * FPS), np.round(coarse.downbeats * FPS))]
+    return Decoded(beats, downbeats, coarse.metre, coarse.bpm)
+
+
+def track(samples: np.ndarray, sr: int, model: BeatTCN | None = None,
+          config: DecoderConfig = DEFAULT_DECODER) -> Decoded:
+    """Beat and downbeat times in seconds, beats per bar and median tempo (BPM) of a mono ``[N]`` song at ``sr``
+    Hz."""
+    return decode_activations(activations(samples, sr, model), config)

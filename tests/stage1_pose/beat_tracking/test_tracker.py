@@ -1,0 +1,102 @@
+"""The beat network, its training pieces and the shipped tracker end to end."""
+
+import json
+from pathlib import Path
+
+import mir_eval
+import numpy as np
+import pytest
+import torch
+
+from dancesynth.core.media import load_song
+from stage1_pose.beat_tracking.features import FPS, N_MELS, frame_of, mel_frames, network_input
+from stage1_pose.beat_tracking.model import PRESETS, BeatTCN, load_model, save_model
+from stage1_pose.beat_tracking.tracker import PRETRAINED, decode_activations, track
+from stage1_pose.beat_tracking.train import Song, TrainConfig, augmented_excerpt, targets
+from stage1_pose.beats import BEAT_TRACKERS, song_beats
+
+REAL_SONG = Path(__file__).parents[2] / "data" / "real_song" / "escape_from_chaosland_40-65s"
+
+
+@pytest.mark.parametrize("frames", [1, 37, 400])
+def test_network_gives_three_logits_per_frame_for_any_length(frames):
+    model = BeatTCN(PRESETS["tiny"]).eval()
+    assert model(torch.zeros(2, frames, 2 * N_MELS)).shape == (2, frames, 3)
+
+
+def test_model_files_are_safetensors_and_json_and_load_the_same_network(tmp_path):
+    model = BeatTCN(PRESETS["tiny"]).eval()
+    save_model(model, tmp_path, {"note": "test"})
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["config.json", "model.safetensors"]
+    assert json.loads((tmp_path / "config.json").read_text())["fps"] == pytest.approx(FPS)
+    x = torch.randn(1, 50, 2 * N_MELS)
+    assert torch.equal(load_model(tmp_path)(x), model(x))
+
+
+def test_targets_mark_beats_downbeats_and_their_neighbours():
+    y = targets(20, np.array([5.0, 10.0, 15.0]), np.array([10.0]), 0.5)
+    assert np.allclose(y.sum(axis=1), 1.0)
+    assert y[5, 1] == 1 and y[10, 2] == 1 and y[15, 1] == 1
+    assert y[4, 1] == y[6, 1] == 0.5 and y[9, 2] == y[11, 2] == 0.5
+    assert y[0, 0] == 1 and y[7, 0] == 1
+
+
+def test_augmented_excerpt_keeps_beats_on_their_onsets():
+    """Clicks in the mel frames stay under the beat targets however the excerpt is stretched and shifted (a click
+    spans three frames, as a 93-ms window smears an onset; a stretch may step over a single frame)."""
+    beats = np.arange(0.5, 60.0, 0.5)
+    mel = np.full((int(61 * FPS), N_MELS), -60.0, np.float32)
+    for offset in (-1, 0, 1):
+        mel[frame_of(beats) + offset] = 0.0
+    song = Song(mel.astype(np.float16), beats, beats[::4])
+    rng = np.random.default_rng(0)
+    config = TrainConfig(noise_probability=0.0)
+    for _ in range(5):
+        x, y = augmented_excerpt(song, 600, config, rng)
+        onsets = np.flatnonzero(x[:, N_MELS:].mean(axis=1) > 1.0)
+        marked = np.flatnonzero(y[:, 1:].max(axis=1) == 1.0)
+        assert len(marked) >= 8
+        assert np.all(np.min(np.abs(marked[:, None] - onsets[None, :]), axis=1) <= 2)
+
+
+def test_pooled_decoding_keeps_full_rate_times():
+    probs = np.zeros((1000, 3), np.float32)
+    truth = np.arange(51, 990, 50)
+    probs[truth, 1] = 0.8
+    probs[truth[::4], 2], probs[truth[::4], 1] = 0.8, 0.0
+    probs[:, 0] = 1 - probs[:, 1:].sum(axis=1)
+    found = decode_activations(probs)
+    assert np.array_equal(frame_of(found.beats), truth)
+    assert np.array_equal(frame_of(found.downbeats), truth[::4])
+    assert found.metre == 4
+
+
+def test_shipped_model_is_small_and_tracks_a_real_recording():
+    """The committed excerpt (a dev-half piece of the benchmark, so in the training data): its beats within
+    70 ms, its bars of 4."""
+    assert {p.name for p in PRETRAINED.iterdir()} == {"config.json", "model.safetensors"}
+    assert sum(p.stat().st_size for p in PRETRAINED.iterdir()) <= 5_000_000
+    truth = np.array(json.loads(REAL_SONG.with_suffix(".beats.json").read_text())["beats"])
+    found = track(load_song(REAL_SONG.with_suffix(".ogg"), 22050), 22050)
+    assert mir_eval.beat.f_measure(truth, found.beats) >= 0.9
+    assert found.metre == 4
+    assert np.all(np.isin(found.downbeats, found.beats))
+    assert np.all(np.diff(np.searchsorted(found.beats, found.downbeats)) == 4)
+
+
+def test_song_beats_runs_either_tracker():
+    sr = 22050
+    y = np.zeros(8 * sr, np.float32)
+    for b in np.arange(0.5, 7.6, 0.5):
+        y[int(b * sr):int(b * sr) + 200] = np.hanning(200)
+    for tracker in BEAT_TRACKERS:
+        found = song_beats(y, sr, tracker)
+        assert mir_eval.beat.f_measure(np.arange(0.5, 7.6, 0.5), found.beats) >= 0.9, tracker
+        assert abs(found.bpm - 120) < 3 and np.all(np.isin(found.downbeats, found.beats))
+    with pytest.raises(ValueError, match="unknown beat tracker"):
+        song_beats(y, sr, "oracle")
+
+
+def test_mel_frames_are_at_the_network_rate():
+    assert mel_frames(np.zeros(22050, np.float32), 22050).shape == (1 + 22050 // 220, N_MELS)
+    assert network_input(np.zeros((10, N_MELS), np.float32)).shape == (10, 2 * N_MELS)
