@@ -36,3 +36,8 @@ def test_train_pose_then_generate_end_to_end(tiny_stage1_dataset, tmp_path, drum
     poses = dancesynth.generate(song, model=run, out=out, seed=1, device="cpu")
     assert len(poses) == 45 and poses.fps == 15.0  # 3 s at the model's 15 fps
     np.testing.assert_array_equal(PoseSequence.load(out).keypoints, poses.keypoints)
+    with np.load(out) as saved:  # the song's beats and downbeats (seconds) travel with the dance
+        assert len(saved["beats"]) >= 4 and np.all(np.isin(saved["downbeats"], saved["beats"]))
+    dsp = dancesynth.generate(song, model=run, out=tmp_path / "dsp.npz", seed=1, device="cpu", beats="dsp")
+    with np.load(tmp_path / "dsp.npz") as saved:
+        assert np.array_equal(saved["downbeats"], saved["beats"][::4]) and len(dsp) == 45

@@ -3,7 +3,7 @@ downbeat times in seconds.
 
 The network runs at ``FPS`` (100.2 frames per second); the decoder at half that (activations max-pooled over
 frame pairs: the Viterbi pass costs a quarter), and each decoded beat then moves to the strongest activation among
-the full-rate frames around it, so times keep the 10-ms grid.
+the full-rate frames within ``_REFINE`` of it, so times keep the 10-ms grid.
 """
 
 from __future__ import annotations
@@ -20,6 +20,9 @@ from stage1_pose.beat_tracking.model import BeatTCN, load_model
 
 PRETRAINED = Path(__file__).resolve().parent.parent / "pretrained" / "beat_tracker"
 _POOL = 2
+# A decoded beat is the start of its beat region (at least 2 frames at 50 fps, DecoderConfig.observation_frames):
+# the peak lies within 4 full-rate frames (40 ms) of it.
+_REFINE = 4
 
 
 @functools.lru_cache(maxsize=1)
@@ -47,7 +50,7 @@ def decode_activations(probs: np.ndarray, config: DecoderConfig = DEFAULT_DECODE
 
     def refine(times: np.ndarray) -> np.ndarray:
         centre = np.round(times * FPS).astype(np.int64)
-        window = np.clip(centre[:, None] + np.arange(-_POOL, _POOL + 1)[None, :], 0, len(probs) - 1)
+        window = np.clip(centre[:, None] + np.arange(-_REFINE, _REFINE + 1)[None, :], 0, len(probs) - 1)
         return window[np.arange(len(window)), strength[window].argmax(axis=1)] / FPS
 
     beats = refine(coarse.beats)

@@ -11,15 +11,17 @@ FPS = 50.0
 
 def spikes(beats: np.ndarray, metre: int, seconds: float, seed: int = 0,
            noise: float = 0.05, height: float = 0.7) -> tuple[np.ndarray, np.ndarray]:
-    """(beat, downbeat) activations at ``FPS``: uniform noise up to ``noise``, ``height`` at each beat (every
-    ``metre``-th a downbeat) with random jitter of one frame and height."""
+    """(beat, downbeat) activations at ``FPS``: uniform noise up to ``noise``, a peak of ``height`` at each beat
+    (every ``metre``-th a downbeat) with half of it on the frames either side, as the network's widened targets
+    teach it, and random jitter of one frame and of the height."""
     rng = np.random.default_rng(seed)
     frames = int(seconds * FPS)
     beat, down = rng.uniform(0, noise, frames), rng.uniform(0, noise / 2, frames)
     for i, t in enumerate(beats):
         f = int(round(t * FPS)) + int(rng.integers(-1, 2))
-        if 0 <= f < frames:
-            (down if i % metre == 0 else beat)[f] = height * rng.uniform(0.6, 1.0)
+        if 1 <= f < frames - 1:
+            peak = height * rng.uniform(0.6, 1.0)
+            (down if i % metre == 0 else beat)[f - 1:f + 2] = (peak / 2, peak, peak / 2)
     return beat, down
 
 

@@ -120,7 +120,7 @@ def test_imported_real_song_gets_bars_from_the_learned_tracker(tmp_path):
     """The committed real excerpt (4/4 rock): downbeats every fourth tracked beat."""
     song = Path(__file__).parents[2] / "data" / "real_song" / "escape_from_chaosland_40-65s.ogg"
     save_openpose_folder(_moving_pose(750, 30.0), tmp_path / "take")
-    clip = import_openpose(tmp_path / "take", song, tmp_path / "ds", "rock", 30.0, 1280, 720)
+    clip = import_openpose(tmp_path / "take", song, tmp_path / "ds", "rock", 30.0, 1280, 720, tracker="learned")
     beats = DanceDataset(tmp_path / "ds").load_beats(clip)
     assert len(beats["downbeats"]) >= 8 and np.all(np.isin(beats["downbeats"], beats["beats"]))
     assert np.all(np.diff(np.searchsorted(beats["beats"], beats["downbeats"])) == 4)
