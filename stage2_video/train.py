@@ -357,6 +357,16 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
     ``precision``: ``auto`` (bf16 on CPUs with AMX/AVX-512-BF16 and on GPUs, fp16 on GPUs without bf16, else
     fp32), ``fp32``, ``bf16`` or ``fp16`` (CUDA): what the forward passes compute in; weights stay float32.
     """
+    return video_trainer(video, run_dir, preset_name, options, resume, poses, vgg_weights, device, overrides,
+                         precision).fit()
+
+
+def video_trainer(video: str | os.PathLike, run_dir: str | os.PathLike, preset_name: str = "small",
+                  options: TrainOptions | None = None, resume: bool = False, poses: str | os.PathLike | None = None,
+                  vgg_weights: str | os.PathLike | None = None, device: str = "auto",
+                  overrides: dict | None = None, precision: str = "auto") -> VideoTrainer:
+    """The trainer :func:`train_video` fits (same arguments), with the run's data prepared and its checkpoint
+    restored when ``resume``: benchmarks time its :meth:`VideoTrainer.train_step` alone."""
     video, run_dir = Path(video), Path(run_dir)
     options = options or TrainOptions()
     require_file(video, "Target video")
@@ -398,4 +408,4 @@ def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_nam
                       options, str(video), dtype)
     if resume:
         trainer.restore()
-    return trainer.fit()
+    return trainer
