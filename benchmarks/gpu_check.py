@@ -51,7 +51,7 @@ import dancesynth
 from dancesynth.core.config import config_to_dict
 from dancesynth.core.device import precision_name, resolve_precision
 from dancesynth.core.runs import RunFolder
-from dancesynth.core.skeleton import PoseSequence, normalize, resample
+from dancesynth.core.skeleton import PoseSequence, normalize
 from stage1_pose.data.layout import POSE_FPS
 from stage1_pose.data.styles import STYLES
 from stage1_pose.data.synth_dance import synthesize_dance
@@ -299,8 +299,8 @@ def dance_row(args: argparse.Namespace, device: torch.device, song: Path, run: P
 
 # --- the check ----------------------------------------------------------------------------------------------------
 def target_video(folder: Path, dance: PoseSequence, tiny: bool) -> tuple[Path, Path]:
-    """The synthetic person dancing ``dance`` at 30 fps: (video, poses file)."""
-    seq = resample(dance, 30.0)
+    """The synthetic person dancing ``dance`` (15 fps): (video, poses file)."""
+    seq = dance
     if tiny:
         seq = PoseSequence(seq.keypoints * (0.25, 0.25, 1), seq.fps, seq.width // 4, seq.height // 4)
     video, poses = folder / "person.mp4", folder / "person.npz"
