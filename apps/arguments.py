@@ -132,6 +132,19 @@ def add_precision_argument(parser: argparse.ArgumentParser, what: str) -> None:
                              "(fp16 on GPUs without bf16), fp32 elsewhere; fp16 needs CUDA (default auto)")
 
 
+def add_output_arguments(parser: argparse.ArgumentParser) -> None:
+    """The video outputs of the frame pipeline `dance` and `render` share: ``--height``, ``--crop``,
+    ``--skeleton-preview`` and ``--side-by-side``."""
+    parser.add_argument("--height", type=video_height, default=None, metavar="H",
+                        help="output height in pixels, aspect kept, rounded up to even (default: the target video's)")
+    parser.add_argument("--crop", action="store_true",
+                        help="write the model's square crop around the person instead of the whole scene")
+    parser.add_argument("--skeleton-preview", type=output_file, default=None, metavar="PATH",
+                        help="also write the skeleton as a video")
+    parser.add_argument("--side-by-side", type=output_file, default=None, metavar="PATH",
+                        help="also write skeleton | generated person side by side")
+
+
 def add_beats_argument(parser: argparse.ArgumentParser) -> None:
     """``--beats learned|dsp``: the beat tracker for the song (default: the better one on the beat benchmark)."""
     from stage1_pose.beat_tracking.trackers import BEAT_TRACKERS, DEFAULT_BEAT_TRACKER

@@ -1,40 +1,33 @@
 """Song + trained models -> dancing video: the composition behind `dancesynth dance`.
 
 Data path (see docs/architecture.md): decode the song, cut the requested segment, find (or train) the target's
-appearance model, stage 1 generates a dance at the pose model's fps, the dance is resampled to the target
-video's fps (C1 interpolation), normalised onto the target's body (Everybody Dance Now) and given the target's
-bone lengths, stage 2 renders model-resolution crops that are composited into the target's scene, frames stream
-into the H.264 encoder, and the segment's audio is muxed in. Every output is written under a temporary name and
+appearance model, stage 1 generates a dance at the pose model's fps, and stage 2's frame pipeline
+(:func:`stage2_video.render.render_video`, the one `dancesynth render` runs on a pose file) resamples it to the
+target video's fps (C1 interpolation), gives it the target's bone lengths, normalises it onto the target's body
+(Everybody Dance Now), renders model-resolution crops, composites them into the target's scene and streams the
+frames into the H.264 encoder with the segment's audio. Every output is written under a temporary name and
 renamed when complete.
 """
 
 from __future__ import annotations
 
-import contextlib
 import os
-import time
-from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from dancesynth.core.concurrency import read_ahead
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import check_outputs
-from dancesynth.core.media import SONG_SAMPLE_RATE, VideoWriter, load_song
-from dancesynth.core.progress import track
-from dancesynth.core.skeleton import PoseSequence, resample
+from dancesynth.core.media import SONG_SAMPLE_RATE, load_song
+from dancesynth.core.skeleton import PoseSequence
 from stage1_pose.beat_snap import DEFAULT_SNAP
 from stage1_pose.beat_tracking.trackers import DEFAULT_BEAT_TRACKER
 from stage1_pose.generate import generate_dance, load_pose_model
 from stage1_pose.pretrained import DEFAULT_POSE_MODEL
 from stage2_video.cache import appearance_model_for
-from stage2_video.composite import Compositor, scene_compositor
-from stage2_video.framing import Framing, label_map
 from stage2_video.presets import resolve_preset
-from stage2_video.render import load_appearance_model, render_layers, target_poses
-from stage2_video.retarget import retarget_onto
+from stage2_video.render import check_output_options, load_appearance_model, render_video
 
 # Minutes of appearance training a --target gets in all unless told otherwise.
 DEFAULT_TRAIN_MINUTES = 30.0
@@ -97,31 +90,6 @@ class DanceResult:
     render_seconds: float = 0.0
 
 
-def output_size(canvas: tuple[int, int], height: int | None) -> tuple[int, int]:
-    """``(width, height)`` of the output: the canvas, or ``height`` pixels high with the aspect kept; both
-    even, as H.264's 4:2:0 sampling needs."""
-    width, canvas_height = canvas
-    if height is None:
-        height = canvas_height
-    width = round(width * height / canvas_height)
-    return width + width % 2, height + height % 2
-
-
-def _output_frames(rendered: Iterable[tuple[np.ndarray, np.ndarray | None]], poses: PoseSequence,
-                   framings: list[Framing], compositor: Compositor | None,
-                   labels: bool) -> Iterator[tuple[np.ndarray, np.ndarray | None]]:
-    """(output frame, skeleton label or None) per rendered frame and its coverage (:func:`render_layers`):
-    composited into the scene unless ``compositor`` is None (the crop itself); the label, at the same size, only
-    when ``labels``. ``framings``: each rendered frame's framing."""
-    for keypoints, framing, (frame, coverage) in zip(poses.keypoints, framings, rendered):
-        if compositor is not None:
-            frame = compositor.frame(frame, keypoints, framing, coverage)
-        label = None
-        if labels:
-            label = label_map(keypoints, framing) if compositor is None else compositor.skeleton(keypoints)
-        yield frame, label
-
-
 def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.PathLike | None = None,
           video_model: str | os.PathLike | None = None, target: str | os.PathLike | None = None,
           cache: str | os.PathLike | None = None, train_minutes: float | None = None, preset: str | None = None,
@@ -152,9 +120,7 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
     if video_model is not None and (cache, train_minutes, preset) != (None, None, None):
         raise DancesynthError("--train-minutes, --cache and --preset apply to --target only; drop them when "
                               "using --video-model.")
-    if crop and height is not None:
-        raise DancesynthError("--height sizes the whole-scene output and --crop writes the model's crop; "
-                              "use one of them.")
+    check_output_options(crop, height)
     # Everything fast to check comes before a training that may take minutes.
     check_outputs({"dance video": out, "skeleton preview": skeleton_preview, "side-by-side video": side_by_side},
                   {"song": song, "target video": target, "appearance model": video_model, "pose model": pose_model})
@@ -166,35 +132,7 @@ def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.
     poses = generate_dance(pose_model_loaded, segment, SONG_SAMPLE_RATE, seed=seed,
                            snap=DEFAULT_SNAP if beat_snap else None, tracker=beats)
     appearance = load_appearance_model(video_model, device, precision=precision)
-    # The video has the target's frame rate; the dance keeps its timing (resampled in seconds, not frames).
-    poses = resample(poses, appearance.fps)
-    if appearance.bone_lengths is not None:
-        poses = retarget_onto(poses, appearance.bone_lengths)
-    poses = target_poses(appearance, poses)
-    framings = appearance.framing.frames(poses)
-    compositor = None if crop else scene_compositor(video_model, output_size(appearance.canvas, height))
-    width, out_height = ((appearance.scale * appearance.config.width, appearance.scale * appearance.config.height)
-                         if compositor is None else compositor.size)
-    outputs = [(Path(out), width)]
-    if skeleton_preview is not None:
-        outputs.append((Path(skeleton_preview), width))
-    if side_by_side is not None:
-        outputs.append((Path(side_by_side), 2 * width))
-    # One generator pass feeds every output, so the extra videos cost encoding only.
-    with contextlib.ExitStack() as stack:
-        writers = [stack.enter_context(VideoWriter(path, poses.fps, w, out_height, audio=segment,
-                                                     audio_sr=SONG_SAMPLE_RATE))
-                   for path, w in outputs]
-        started = time.perf_counter()
-        rendered = render_layers(appearance, poses, normalize=False, framings=framings)
-        output_framings = [appearance.output_framing(f) for f in framings]
-        for frame, label in track(read_ahead(_output_frames(rendered, poses, output_framings, compositor,
-                                                            len(writers) > 1)),
-                                  total=len(poses), desc="rendering", unit="frame", disable=not progress):
-            writers[0].write(frame)
-            if skeleton_preview is not None:
-                writers[1].write(label)
-            if side_by_side is not None:
-                writers[-1].write(np.concatenate([label, frame], axis=1))
-    render_seconds = time.perf_counter() - started
-    return DanceResult(poses, [path for path, _ in outputs], Path(video_model), render_seconds)
+    rendered = render_video(poses, appearance, out, audio=segment, audio_sr=SONG_SAMPLE_RATE, crop=crop,
+                            height=height, skeleton_preview=skeleton_preview, side_by_side=side_by_side,
+                            progress=progress)
+    return DanceResult(rendered.poses, rendered.written, Path(video_model), rendered.seconds)

@@ -47,7 +47,7 @@ def dancing_poses(frames: int, size: int) -> PoseSequence:
 def timed_render(model: AppearanceModel, poses: PoseSequence) -> float:
     """Frames/s of one :func:`render_frames` pass over ``poses``."""
     start = time.perf_counter()
-    count = sum(1 for _ in render_frames(model, poses, normalize=False))
+    count = sum(1 for _ in render_frames(model, poses))
     return count / (time.perf_counter() - start)
 
 

@@ -92,7 +92,7 @@ def held_out_quality(run_dir: Path, frames: int = 0, device: str = "auto", groun
     commanded = poses.slice_frames(held_out.start, stop)
     # Framed as in training: the following box's path is smoothed over the whole video, not the slice.
     framings = model.framing.frames(poses)[held_out.start:stop]
-    generated = list(track(render_frames(model, commanded, normalize=False, framings=framings),
+    generated = list(track(render_frames(model, commanded, framings=framings),
                            total=len(commanded), desc="render"))
     reals = [np.asarray(real[t]) for t in range(held_out.start, stop)]
     target = framed(commanded, framings)

@@ -158,7 +158,7 @@ def rendered(run: Path, poses: PoseSequence, picks: list[int]) -> tuple[list[np.
     out = []
     for t, keypoints, framing, (frame, coverage) in zip(range(start, stop), poses.keypoints[start:stop], framings,
                                                           render_layers(model, poses.slice_frames(start, stop),
-                                                                        normalize=False, framings=framings)):
+                                                                        framings)):
         if t in picks:
             out.append(compositor.frame(frame, keypoints, model.output_framing(framing), coverage))
     warp_ms = float("nan")

@@ -22,6 +22,7 @@ if TYPE_CHECKING:
     from apps.pipeline import DanceResult
     from dancesynth.core.skeleton import PoseSequence
     from stage2_video.extract import Extraction
+    from stage2_video.render import Rendered
 
 PathLike = str | os.PathLike
 
@@ -117,35 +118,46 @@ def generate(song: PathLike, *, model: PathLike | None = None, out: PathLike | N
 
 
 def render(poses: PoseSequence | PathLike, *, model: PathLike, out: PathLike, audio: PathLike | None = None,
-           normalize: bool = True, optimize: bool = True, device: str = "auto", precision: str = "auto") -> Path:
-    """Render ``poses`` (a PoseSequence or a .npz pose file) as an mp4 of the person of the stage-2 run ``model``.
+           normalize: bool = True, height: int | None = None, crop: bool = False,
+           skeleton_preview: PathLike | None = None, side_by_side: PathLike | None = None, optimize: bool = True,
+           device: str = "auto", precision: str = "auto") -> Rendered:
+    """Render ``poses`` (a PoseSequence or a .npz pose file) as an mp4 of the person of the stage-2 run ``model``,
+    through the frame pipeline :func:`dance` uses (:func:`stage2_video.render.render_video`).
 
     Args:
-        audio: a song to mux (any FFmpeg format), trimmed to the video's length.
-        normalize: move the poses onto the target's body first (Everybody Dance Now); False for poses that
-            are already on the target's canvas.
+        audio: a song to mux (any FFmpeg format), cut or padded to the video's length.
+        normalize: give the poses the target's bone lengths and move them onto the target's body (Everybody
+            Dance Now); False for poses that are already on the target's canvas.
+        height: output height in pixels, aspect kept (default: the target video's).
+        crop: write the model's crop around the person instead of the whole scene.
+        skeleton_preview: also write the skeleton as an mp4 (same size).
+        side_by_side: also write skeleton | generated person as an mp4.
         optimize: the fast inference path (OpenVINO on CPU); False for plain PyTorch.
         device: ``auto``, ``cpu`` or ``cuda``.
         precision: ``auto`` (bf16 on CPUs with AMX/AVX-512-BF16 and on GPUs, fp16 on GPUs without bf16, else
             fp32), ``fp32``, ``bf16`` or ``fp16`` (CUDA).
 
     Returns:
-        the written video's path; frames at the poses' fps and the model's resolution.
+        the poses rendered, resampled to the target video's fps and on its canvas (``.poses``), and the files
+        written (``.written``, the video first).
     """
     from dancesynth.core.fileio import check_outputs
     from dancesynth.core.media import AAC_RATE, decode_audio
     from dancesynth.core.skeleton import PoseSequence
-    from stage2_video.render import load_appearance_model, render_video
+    from stage2_video.render import check_output_options, load_appearance_model, render_video
 
-    check_outputs({"video": out}, {"pose file": None if isinstance(poses, PoseSequence) else poses,
-                                   "appearance model": model, "audio": audio})
+    check_output_options(crop, height)
+    check_outputs({"video": out, "skeleton preview": skeleton_preview, "side-by-side video": side_by_side},
+                  {"pose file": None if isinstance(poses, PoseSequence) else poses, "appearance model": model,
+                   "audio": audio})
     if not isinstance(poses, PoseSequence):
         poses = PoseSequence.load(poses)
     appearance = load_appearance_model(model, device, optimize=optimize, precision=precision)
     # The soundtrack is decoded at the rate it is encoded at, so it is not resampled twice.
     samples = decode_audio(audio, AAC_RATE) if audio is not None else None
     return render_video(poses, appearance, out, audio=samples, audio_sr=AAC_RATE if audio is not None else None,
-                        normalize=normalize)
+                        normalize=normalize, crop=crop, height=height, skeleton_preview=skeleton_preview,
+                        side_by_side=side_by_side)
 
 
 def extract_poses(video: PathLike, *, out: PathLike | None = None, preview: PathLike | None = None,

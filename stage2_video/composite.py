@@ -333,6 +333,16 @@ class Compositor:
         return draw_pose(np.zeros((self.size[1], self.size[0], 3), np.uint8), kp)
 
 
+def output_size(canvas: tuple[int, int], height: int | None) -> tuple[int, int]:
+    """``(width, height)`` in pixels of the scene output: the ``canvas`` (pixels), or ``height`` pixels high with
+    the aspect kept; both even, as H.264's 4:2:0 sampling needs."""
+    width, canvas_height = canvas
+    if height is None:
+        height = canvas_height
+    width = round(width * height / canvas_height)
+    return width + width % 2, height + height % 2
+
+
 def scene_compositor(run_dir: str | os.PathLike, size: tuple[int, int]) -> Compositor:
     """The :class:`Compositor` of an appearance model's run (its plate and torso length) for output ``size``."""
     plate = load_plate(run_dir)

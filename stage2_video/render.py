@@ -1,9 +1,12 @@
 """Rendering a trained appearance model: pose sequence -> frames of the target person, streamed.
 
-Poses from elsewhere are first normalised onto the target's canvas (:mod:`stage2_video.normalize`, with the
-target statistics stored in the model's JSON), then framed like the training frames, drawn as label maps
-and fed through the generator one frame at a time (each frame conditions the next), so memory stays flat
-for any length. A model conditioned on the warped prior (:mod:`stage2_video.prior`) also warps the person's own
+:func:`render_video` is the one frame pipeline of `dancesynth render` and `dancesynth dance`: poses from anywhere
+are resampled to the target video's frame rate, given the target's bone lengths (:mod:`stage2_video.retarget`)
+and normalised onto its body (:mod:`stage2_video.normalize`, with the target statistics stored in the model's JSON)
+(:func:`onto_target`), then framed like the training frames, drawn as label maps and fed through the generator one
+frame at a time (each frame conditions the next), so memory stays flat for any length; each frame is composited
+into the target's scene (:mod:`stage2_video.composite`) unless the model's crop is asked for, and streamed to the
+encoder. A model conditioned on the warped prior (:mod:`stage2_video.prior`) also warps the person's own
 pixels from its frame bank onto each pose at ``prior_scale`` times its resolution; the network's correction (added
 to the prior, or for models saved before 2026-12-05 RGB and a mask painted over it) is upsampled onto that, so
 frames come out at the prior's size. Before its first training step such a model renders the warped prior alone.
@@ -11,9 +14,11 @@ frames come out at the prior's size. Before its first training step such a model
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import math
 import os
+import time
 import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -31,10 +36,10 @@ from dancesynth.core.device import resolve_device, resolve_precision
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import VideoWriter
 from dancesynth.core.progress import track
-from dancesynth.core.skeleton import BODY25_LIMBS, PoseSequence
-from stage2_video.composite import load_plate
+from dancesynth.core.skeleton import BODY25_LIMBS, PoseSequence, resample
+from stage2_video.composite import Compositor, load_plate, output_size, scene_compositor
 from stage2_video.data import POSES_FILE, frame_bank, frames_file, prior_images, split_ranges, to_image, to_tensor
-from stage2_video.framing import Framing, VideoFraming, condition, framing_from_dict
+from stage2_video.framing import Framing, VideoFraming, condition, framing_from_dict, label_map
 from stage2_video.masks import masks_file
 from stage2_video.models.pix2pixhd import (
     IMAGE_CHANNELS,
@@ -47,6 +52,7 @@ from stage2_video.models.pix2pixhd import (
 )
 from stage2_video.normalize import BodyStats, fit_normalization
 from stage2_video.prior import FrameBank, PriorRenderer, scaled_framing
+from stage2_video.retarget import retarget_onto
 from stage2_video.train import KIND
 from stage2_video.winograd import winograd_generator
 
@@ -157,6 +163,8 @@ class AppearanceModel:
     plate: np.ndarray | None = None
     # the target's frame bank, for models conditioned on the warped prior (config.prior)
     bank: FrameBank | None = None
+    # the run folder it was loaded from (its plate and poses size the scene output); None for one built in memory
+    run_dir: Path | None = None
 
     @property
     def scale(self) -> int:
@@ -262,30 +270,36 @@ def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", opti
         generator = _Autocast(generator, dtype)
     plate = load_plate(run_dir) if config.background else None
     return AppearanceModel(generator, config, framing, stats, fps, dev, (canvas_width, canvas_height),
-                           bone_lengths=lengths, plate=plate, bank=bank)
+                           bone_lengths=lengths, plate=plate, bank=bank, run_dir=run_dir)
 
 
-def target_poses(model: AppearanceModel, poses: PoseSequence, normalize: bool = True) -> PoseSequence:
-    """``poses`` moved onto the target's canvas (EDN normalisation) unless ``normalize`` is False."""
+def onto_target(model: AppearanceModel, poses: PoseSequence, normalize: bool = True) -> PoseSequence:
+    """``poses`` (pixels of any canvas, any fps) as ``model`` renders them: resampled to the target video's fps
+    (PCHIP, the timing kept in seconds), then given the target's bone lengths (runs saved before them: skipped) and
+    moved onto the target's body by the Everybody Dance Now normalisation, in that order (see
+    :mod:`stage2_video.retarget` for why). ``normalize`` False: poses already on the target's canvas, only resampled."""
+    poses = resample(poses, model.fps)
     if not normalize:
         return poses
     if model.target_stats is None:
         raise DancesynthError("This model has no target body statistics (the target video never showed head and "
-                              "ankles together); render with --no-normalize.")
+                              "ankles together); render poses on its canvas with `dancesynth render --no-normalize`.")
+    if model.bone_lengths is not None:
+        poses = retarget_onto(poses, model.bone_lengths)
     return fit_normalization(poses, model.target_stats).apply(poses)
 
 
-def render_layers(model: AppearanceModel, poses: PoseSequence, normalize: bool = True,
+def render_layers(model: AppearanceModel, poses: PoseSequence,
                   framings: list[Framing] | None = None) -> Iterator[tuple[np.ndarray, np.ndarray | None]]:
-    """Yield per pose, in order, one ``[height, width, 3]`` uint8 RGB frame (the model's resolution times
-    ``model.scale``, framed by ``model.output_framing(framings[t])``) and, for models conditioned on the warped
-    prior, its ``[height, width]`` float32 coverage in [0, 1] (else None). Frame t's label map is drawn in
-    ``framings[t]`` (default: the model's framing of the poses, ``model.framing.frames``)."""
-    seq = target_poses(model, poses, normalize)
+    """Yield per pose (pixels of the target's canvas, :func:`onto_target`), in order, one ``[height, width, 3]``
+    uint8 RGB frame (the model's resolution times ``model.scale``, framed by ``model.output_framing(framings[t])``)
+    and, for models conditioned on the warped prior, its ``[height, width]`` float32 coverage in [0, 1] (else
+    None). Frame t's label map is drawn in ``framings[t]`` (default: the model's framing of the poses,
+    ``model.framing.frames``)."""
     previous = None
     renderer = PriorRenderer(model.bank) if model.bank is not None else None
     size = (model.config.width, model.config.height)
-    for keypoints, framing in zip(seq.keypoints, framings or model.framing.frames(seq)):
+    for keypoints, framing in zip(poses.keypoints, framings or model.framing.frames(poses)):
         if renderer is None:
             previous = model.step(condition(keypoints, framing, model.plate), previous)
             yield to_image(previous[0]), None
@@ -296,25 +310,84 @@ def render_layers(model: AppearanceModel, poses: PoseSequence, normalize: bool =
         yield frame, coverage
 
 
-def render_frames(model: AppearanceModel, poses: PoseSequence, normalize: bool = True,
+def render_frames(model: AppearanceModel, poses: PoseSequence,
                   framings: list[Framing] | None = None) -> Iterator[np.ndarray]:
     """The frames of :func:`render_layers` alone."""
-    for frame, _ in render_layers(model, poses, normalize, framings):
+    for frame, _ in render_layers(model, poses, framings):
         yield frame
 
 
-def render_video(poses: PoseSequence, model: AppearanceModel | str | os.PathLike, out_path: str | os.PathLike,
+def output_frames(model: AppearanceModel, poses: PoseSequence, compositor: Compositor | None,
+                  labels: bool) -> Iterator[tuple[np.ndarray, np.ndarray | None]]:
+    """Per pose (pixels of the target's canvas, :func:`onto_target`): the output frame, composited into the scene
+    by ``compositor`` (``[height, width, 3]`` uint8 at its size), or the model's crop when it is None; and, when
+    ``labels``, the skeleton drawn at the same size and place (else None)."""
+    framings = model.framing.frames(poses)
+    for keypoints, framing, (frame, coverage) in zip(poses.keypoints, framings,
+                                                      render_layers(model, poses, framings)):
+        framed = model.output_framing(framing)
+        if compositor is not None:
+            frame = compositor.frame(frame, keypoints, framed, coverage)
+        label = None
+        if labels:
+            label = label_map(keypoints, framed) if compositor is None else compositor.skeleton(keypoints)
+        yield frame, label
+
+
+def check_output_options(crop: bool, height: int | None) -> None:
+    """Refuse ``crop`` together with ``height`` (pixels), before any work."""
+    if crop and height is not None:
+        raise DancesynthError("--height sizes the whole-scene output and --crop writes the model's crop; "
+                              "use one of them.")
+
+
+@dataclass
+class Rendered:
+    """What :func:`render_video` produced."""
+
+    poses: PoseSequence  # the poses rendered: at the target video's fps, on its canvas (pixels)
+    written: list[Path]  # the video, then the skeleton preview and the side-by-side video where asked for
+    seconds: float  # wall seconds of the frame loop (rendering, compositing, encoding every output)
+
+
+def render_video(poses: PoseSequence, model: AppearanceModel, out: str | os.PathLike,
                  audio: np.ndarray | None = None, audio_sr: int | None = None, normalize: bool = True,
-                 device: str = "auto", progress: bool = True) -> Path:
-    """Render ``poses`` (at their fps) to an mp4 at ``out_path``, with ``audio`` (mono float32 at ``audio_sr``
-    Hz) muxed when given; ``model`` is a loaded model or a run folder. Written atomically; returns the path."""
-    if not isinstance(model, AppearanceModel):
-        model = load_appearance_model(model, device)
-    out_path = Path(out_path)
-    frames = track(read_ahead(render_frames(model, poses, normalize)), total=len(poses), desc="rendering", unit="frame",
-                  disable=not progress)
-    width, height = model.scale * model.config.width, model.scale * model.config.height
-    with VideoWriter(out_path, poses.fps, width, height, audio=audio, audio_sr=audio_sr) as writer:
-        for frame in frames:
-            writer.write(frame)
-    return out_path
+                 crop: bool = False, height: int | None = None, skeleton_preview: str | os.PathLike | None = None,
+                 side_by_side: str | os.PathLike | None = None, progress: bool = True) -> Rendered:
+    """The frame pipeline of `render` and `dance`: ``poses`` (pixels, any canvas and fps) -> the person of
+    ``model`` dancing them in an mp4 at ``out``, at the target video's fps.
+
+    The poses go :func:`onto_target` (resample, retarget, normalise; ``normalize`` False: poses already on the
+    target's canvas, only resampled), through the generator and into the target's scene over its background plate
+    at the target video's resolution, or ``height`` pixels high with the aspect kept; ``crop`` writes the model's
+    crop instead (its resolution times ``model.scale``). ``skeleton_preview`` and ``side_by_side`` (skeleton |
+    person) are further mp4s at the same height. ``audio`` (mono float32 at ``audio_sr`` Hz) is muxed into each,
+    cut or padded to the video's duration. One generator pass feeds every output; each is written atomically.
+    """
+    check_output_options(crop, height)
+    poses = onto_target(model, poses, normalize)
+    if crop:
+        compositor = None
+        width, out_height = model.scale * model.config.width, model.scale * model.config.height
+    else:
+        if model.run_dir is None:
+            raise ValueError("a model built in memory has no scene to composite into; render its crop")
+        compositor = scene_compositor(model.run_dir, output_size(model.canvas, height))
+        width, out_height = compositor.size
+    outputs = [(Path(out), width)]
+    if skeleton_preview is not None:
+        outputs.append((Path(skeleton_preview), width))
+    if side_by_side is not None:
+        outputs.append((Path(side_by_side), 2 * width))
+    with contextlib.ExitStack() as stack:
+        writers = [stack.enter_context(VideoWriter(path, poses.fps, w, out_height, audio=audio, audio_sr=audio_sr))
+                   for path, w in outputs]
+        started = time.perf_counter()
+        frames = read_ahead(output_frames(model, poses, compositor, len(writers) > 1))
+        for frame, label in track(frames, total=len(poses), desc="rendering", unit="frame", disable=not progress):
+            writers[0].write(frame)
+            if skeleton_preview is not None:
+                writers[1].write(label)
+            if side_by_side is not None:
+                writers[-1].write(np.concatenate([label, frame], axis=1))
+    return Rendered(poses, [path for path, _ in outputs], time.perf_counter() - started)

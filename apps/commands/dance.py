@@ -7,6 +7,7 @@ import logging
 
 from apps.arguments import (
     add_beats_argument,
+    add_output_arguments,
     add_precision_argument,
     existing_file,
     non_negative_float,
@@ -14,7 +15,6 @@ from apps.arguments import (
     output_file,
     output_folder,
     positive_float,
-    video_height,
 )
 from stage2_video.presets import describe_presets, preset_names
 
@@ -22,10 +22,11 @@ NAME = "dance"
 HELP = "make a video of the target person dancing to a song"
 DESCRIPTION = """\
 Generate a dance for SONG with a stage-1 pose model (the one shipped with dancesynth unless --pose-model is
-given), move it onto the target person's body (Everybody-Dance-Now normalisation, then the person's own bone
-lengths) and render it with their appearance model, composited into their own scene. The output mp4 has the
-target video's resolution (or --height) and frame rate and the song segment as AAC audio; picture and sound
-last the segment's duration within one frame.
+given), resample it to the target video's frame rate, move it onto the target person's body (the person's own
+bone lengths, then Everybody-Dance-Now normalisation) and render it with their appearance model, composited into
+their own scene: the frame pipeline `dancesynth render` runs on a pose file. The output mp4 has the target
+video's resolution (or --height) and frame rate and the song segment as AAC audio; picture and sound last the
+segment's duration within one frame.
 
 The person comes from --target VIDEO (one command: their appearance model is looked up in the cache, keyed by
 the video's content and the preset, or trained now for --train-minutes; a later call with more minutes continues
@@ -70,14 +71,7 @@ def add_arguments(p: argparse.ArgumentParser) -> None:
                    help="segment start in seconds (default 0)")
     p.add_argument("--duration", type=positive_float, default=None, metavar="D",
                    help="segment length in seconds (default: to the end of the song)")
-    p.add_argument("--height", type=video_height, default=None, metavar="H",
-                   help="output height in pixels, aspect kept, rounded up to even (default: the target video's)")
-    p.add_argument("--crop", action="store_true",
-                   help="write the model's square crop around the person instead of the whole scene")
-    p.add_argument("--skeleton-preview", type=output_file, default=None, metavar="PATH",
-                   help="also write the skeleton as a video")
-    p.add_argument("--side-by-side", type=output_file, default=None, metavar="PATH",
-                   help="also write skeleton | generated person side by side")
+    add_output_arguments(p)
     add_precision_argument(p, "the appearance model's training (with --target) and rendering")
     p.add_argument("--no-beat-snap", dest="beat_snap", action="store_false",
                    help="keep the pose model's own timing instead of retiming its movement beats onto the "

@@ -10,7 +10,7 @@ import torch
 torch.set_num_threads(1)
 
 from apps.cli import main  # noqa: E402
-from dancesynth.core.media import decode_audio, probe_streams, probe_video  # noqa: E402
+from dancesynth.core.media import VideoWriter, decode_audio, probe_streams, probe_video  # noqa: E402
 from dancesynth.core.skeleton import PoseSequence  # noqa: E402
 from stage1_pose.train import train  # noqa: E402
 from stage2_video.synthetic_person import appearance_preset, write_person_video  # noqa: E402
@@ -92,6 +92,39 @@ def test_crop_keeps_the_model_resolution_and_height_scales_the_scene(models, tmp
     assert main(["dance", str(song), *common, "--out", str(tmp_path / "h.mp4"), "--height", "128"]) == 0
     target, scaled = probe_video(video_run.parent / "target.mp4"), probe_video(tmp_path / "h.mp4")
     assert scaled.height == 128 and abs(scaled.width / scaled.height - target.width / target.height) < 0.02
+
+
+@pytest.mark.parametrize("options, extra", [([], "--side-by-side"), (["--crop"], "--skeleton-preview")])
+def test_render_of_a_pose_file_gives_the_frames_dance_gives_the_same_poses(models, tmp_path, monkeypatch, options,
+                                                                           extra):
+    import apps.pipeline
+
+    pose_run, video_run = models
+    # Another canvas, a larger person, another frame rate: every step of the shared pipeline has work to do.
+    target = PoseSequence.load(video_run.parent / "target.npz").slice_frames(0, 20)
+    poses = PoseSequence(target.keypoints * np.array([2, 2, 1], np.float32), 10.0, 2 * target.width,
+                         2 * target.height)
+    poses.save(tmp_path / "poses.npz")
+    monkeypatch.setattr(apps.pipeline, "generate_dance", lambda *args, **kwargs: poses)
+    # The frames as handed to the encoder: x264 need not encode the same frames to the same bits twice.
+    written: dict[str, list[np.ndarray]] = {}
+    write = VideoWriter.write
+
+    def recorded_write(self: VideoWriter, frame: np.ndarray) -> None:
+        written.setdefault(self.path.name, []).append(frame.copy())
+        write(self, frame)
+
+    monkeypatch.setattr(VideoWriter, "write", recorded_write)
+    song = _song(tmp_path / "song.wav", seconds=2.0)
+    for command, inputs in (("dance", [str(song), "--pose-model", str(pose_run), "--video-model", str(video_run)]),
+                            ("render", [str(tmp_path / "poses.npz"), "--audio", str(song), "--model", str(video_run)])):
+        assert main([command, *inputs, "--out", str(tmp_path / f"{command}.mp4"), *options,
+                     extra, str(tmp_path / f"{command}_extra.mp4"), "--device", "cpu"]) == 0
+    frames = round(2.0 * probe_video(video_run.parent / "target.mp4").fps)  # 2 s at the target video's fps
+    for name in ("{}.mp4", "{}_extra.mp4"):
+        danced, rendered = written[name.format("dance")], written[name.format("render")]
+        assert len(danced) == len(rendered) == frames == probe_video(tmp_path / name.format("render")).num_frames
+        assert all(np.array_equal(a, b) for a, b in zip(danced, rendered))
 
 
 def test_without_a_pose_model_the_shipped_one_dances(models, tmp_path):

@@ -24,10 +24,17 @@ def test_train_video_then_render_from_the_command_line(tmp_path, capsys, monkeyp
     assert main(["train-video", str(tmp_path / "t.mp4"), "--out", str(run), "--poses", str(tmp_path / "t.npz"),
                  "--size", "32x32", "--epochs", "1", "--batch-size", "8", "--device", "cpu"]) == 0
     assert "VGG perceptual loss is OFF" in capsys.readouterr().err
-    out = tmp_path / "dance.mp4"
-    assert main(["render", str(tmp_path / "t.npz"), "--model", str(run), "--out", str(out), "--no-normalize"]) == 0
+    out, scene, skeleton = tmp_path / "dance.mp4", tmp_path / "scene.mp4", tmp_path / "skeleton.mp4"
+    assert main(["render", str(tmp_path / "t.npz"), "--model", str(run), "--out", str(out), "--no-normalize",
+                 "--crop"]) == 0
     info = probe_video(out)
     assert (info.width, info.height, info.num_frames) == (64, 64, 20)  # the warped prior's scale: twice the model
+    # Without --crop: the target's scene, here scaled to 32 px high, and its skeleton at the same size.
+    assert main(["render", str(tmp_path / "t.npz"), "--model", str(run), "--out", str(scene), "--height", "32",
+                 "--skeleton-preview", str(skeleton)]) == 0
+    for path in (scene, skeleton):
+        info = probe_video(path)
+        assert (info.width, info.height, info.num_frames) == (32, 32, 20)
 
 
 def test_render_errors_are_one_line_messages(tmp_path, capsys):
@@ -39,3 +46,6 @@ def test_render_errors_are_one_line_messages(tmp_path, capsys):
     code = main(["train-video", str(tmp_path / "t.mp4"), "--out", str(tmp_path / "r"), "--size", "30x30",
                  "--epochs", "1"])
     assert code == 1 and "divisible" in capsys.readouterr().err
+    code = main(["render", str(tmp_path / "t.npz"), "--model", str(tmp_path / "no_run"), "--out",
+                 str(tmp_path / "x.mp4"), "--crop", "--height", "64"])
+    assert code == 1 and "use one of them" in capsys.readouterr().err

@@ -16,16 +16,30 @@ from stage2_video.render import OpenVINOGenerator, load_appearance_model, render
 from stage2_video.train import TrainOptions, train_video
 
 
-def test_render_streams_a_video_with_right_count_and_size(tiny_run, make_poses, tmp_path):
+def test_render_streams_a_video_with_right_count_and_size(tiny_run, tiny_target, make_poses, tmp_path):
     model = load_appearance_model(tiny_run, "cpu")
-    # poses from elsewhere: another canvas, smaller person, other fps -> normalised onto the target
+    # poses from elsewhere: another canvas, smaller person, other fps -> resampled and normalised onto the target
     src = make_poses(frames=9, width=200, height=120)
     src = src.replace(src.keypoints * np.array([0.8, 0.8, 1], np.float32), fps=10.0)
-    out = render_video(src, model, tmp_path / "out.mp4", progress=False)
-    info = probe_video(out)
+    crop, scene, side = tmp_path / "crop.mp4", tmp_path / "scene.mp4", tmp_path / "side.mp4"
+    made = render_video(src, model, crop, crop=True, progress=False)
+    info = probe_video(crop)
     assert model.scale == 2 and (info.width, info.height) == (64, 64)  # the prior's size
-    assert info.num_frames == 9 and info.fps == pytest.approx(10.0)
+    # 0.9 s at the target video's frame rate
+    assert info.num_frames == len(made.poses) == round(0.9 * model.fps) and info.fps == pytest.approx(model.fps)
+    assert (made.poses.width, made.poses.height) == model.canvas and made.written == [crop]
+    render_video(src, model, scene, height=48, side_by_side=side, progress=False)
+    target = probe_video(tiny_target[0])
+    assert probe_video(scene).height == 48 and probe_video(side).width == 2 * probe_video(scene).width
+    assert abs(probe_video(scene).width / 48 - target.width / target.height) < 0.05
     assert not list(tmp_path.glob("*.part*"))
+
+
+def test_crop_with_height_is_refused(tiny_run, make_poses, tmp_path):
+    with pytest.raises(DancesynthError, match="use one of them"):
+        render_video(make_poses(frames=3), load_appearance_model(tiny_run, "cpu"), tmp_path / "x.mp4", crop=True,
+                     height=64)
+    assert not list(tmp_path.iterdir())
 
 
 def test_optimized_generator_matches_plain_forward(tiny_run):
@@ -33,7 +47,7 @@ def test_optimized_generator_matches_plain_forward(tiny_run):
     plain = load_appearance_model(tiny_run, "cpu", optimize=False, precision="fp32")
     assert isinstance(fast.generator, OpenVINOGenerator) and isinstance(plain.generator, torch.nn.Module)
     poses = PoseSequence.load(tiny_run / "poses.npz").slice_frames(0, 5)
-    for a, b in zip(render_frames(fast, poses, normalize=False), render_frames(plain, poses, normalize=False)):
+    for a, b in zip(render_frames(fast, poses), render_frames(plain, poses)):
         assert a.shape == (64, 64, 3) and a.dtype == np.uint8
         assert np.abs(a.astype(int) - b.astype(int)).max() <= 1
 
@@ -83,9 +97,9 @@ def test_a_model_trained_before_the_warped_prior_still_loads_and_renders(tiny_ta
     update_meta(run, "stage2", {"config": {k: v for k, v in meta["config"].items() if not k.startswith("prior")}})
     model = load_appearance_model(run, "cpu")
     assert model.bank is None and model.scale == 1
-    out = render_video(PoseSequence.load(poses).slice_frames(0, 4), model, tmp_path / "old.mp4", normalize=False,
-                       progress=False)
-    info = probe_video(out)
+    render_video(PoseSequence.load(poses).slice_frames(0, 4), model, tmp_path / "old.mp4", normalize=False,
+                 crop=True, progress=False)
+    info = probe_video(tmp_path / "old.mp4")
     assert (info.width, info.height, info.num_frames) == (32, 32, 4)
 
 
@@ -99,7 +113,7 @@ def test_a_prior_model_painted_through_a_mask_still_loads_and_renders(tiny_targe
     update_meta(run, "stage2", {"config": {k: v for k, v in meta["config"].items() if k != "residual"}})
     model = load_appearance_model(run, "cpu")
     assert model.config.prior and not model.config.repairs and model.generator is not None
-    frames = list(render_frames(model, PoseSequence.load(poses).slice_frames(0, 3), normalize=False))
+    frames = list(render_frames(model, PoseSequence.load(poses).slice_frames(0, 3)))
     assert len(frames) == 3 and frames[0].shape == (64, 64, 3)
 
 
@@ -112,6 +126,6 @@ def test_an_untrained_prior_model_renders_the_warp_alone(tiny_target, tiny_confi
     assert model.generator is None
     seq = PoseSequence.load(poses).slice_frames(0, 3)
     renderer = PriorRenderer(model.bank)
-    for keypoints, frame in zip(seq.keypoints, render_frames(model, seq, normalize=False)):
+    for keypoints, frame in zip(seq.keypoints, render_frames(model, seq)):
         high, _ = prior_images(renderer, keypoints, model.output_framing(model.framing), model.plate, (32, 32))
         assert np.array_equal(frame, high[..., :3])
