@@ -2,7 +2,7 @@
 needs no labelling, and write the model the package ships.
 
     .venv/bin/python benchmarks/beat_benchmark.py fetch        # once: packages, renderer, the benchmark's pieces
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_beat_tracker.py corpus   # renders the corpus (~15 min)
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_beat_tracker.py corpus   # renders the corpus (~9 min)
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_beat_tracker.py train --minutes 45 \\
         --out stage1_pose/pretrained/beat_tracker                                  # renders what is missing first
 
