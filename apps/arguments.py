@@ -152,3 +152,14 @@ def add_beats_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--beats", choices=BEAT_TRACKERS, default=DEFAULT_BEAT_TRACKER,
                         help="beat tracker: learned = a network with a bar decoder (beats and downbeats), dsp = "
                              f"onset tempograms and dynamic programming (default {DEFAULT_BEAT_TRACKER})")
+
+
+def add_trainer_arguments(parser: argparse.ArgumentParser, length: str) -> None:
+    """``--resume`` and ``--minutes``, alike on every trainer (the protocol of :mod:`dancesynth.core.runs`);
+    ``length`` is the flag that sets the run's total length (e.g. ``--epochs``)."""
+    parser.add_argument("--resume", action="store_true",
+                        help=f"continue the run in --out exactly where it stopped (Ctrl-C, SIGTERM, kill -9), with its "
+                             f"own config and seed; {length} sets a new total")
+    parser.add_argument("--minutes", type=positive_float,
+                        help="wall-clock training time of the run in all, every call together (a resumed run trains "
+                             "what is left); it stops with a checkpoint")

@@ -104,9 +104,8 @@ def train_row(video: Path, run: Path, row: str, minutes: float, preset: str) -> 
         follow = isinstance(video_framing(seq, config.width, config.height), FollowFraming)
         overrides = {"prior": False, "background": follow, "blend": follow}
     trained = load_meta(run, KIND).get("trained_seconds", 0.0) if has_checkpoint(run) else None
-    budget = minutes if trained is None else max(0.0, minutes - trained / 60)
-    if trained is None or budget > 1 / 60:
-        train_video(video, run, preset, TrainOptions(minutes=budget), resume=trained is not None,
+    if trained is None or minutes - trained / 60 > 1 / 60:
+        train_video(video, run, preset, TrainOptions(minutes=minutes), resume=trained is not None,
                     overrides=overrides, device="cpu")
     return run
 

@@ -213,9 +213,11 @@ def train_pose(method: str, *, data: PathLike, out: PathLike, preset: str = "sma
     Args:
         out: the run folder (weights, metrics.csv, loss.png, previews/).
         preset: ``small`` (CPU, minutes) or ``paper`` (published settings); ``overrides`` replace fields of it.
-        epochs: total epochs (default: the preset's); ``minutes`` stops earlier, with a checkpoint.
+        epochs: total epochs (default: the preset's); ``minutes``: wall-clock training time of the run in all
+            (every call together), it stops earlier with a checkpoint.
         batch_size: global batch size in windows; ``window``: training window length in pose frames.
-        resume: continue the run in ``out`` exactly (a larger ``epochs`` extends a finished one).
+        resume: continue the run in ``out`` exactly (a larger ``epochs`` or ``minutes`` extends a finished one);
+            Ctrl-C or SIGTERM saves a checkpoint, then raises :class:`KeyboardInterrupt`.
         checkpoint_every: optimizer steps between checkpoints.
         preview_every: epochs between preview videos (0 = none), at most one per ``preview_gap`` minutes.
         workers: data loader worker processes.
@@ -246,8 +248,10 @@ def train_video(video: PathLike, *, out: PathLike, preset: str = "small", overri
         out: the run folder (weights, validation.csv, samples/, losses.csv, losses.png).
         preset: one of :data:`stage2_video.presets.PRESETS` (``small``: CPU, 128 px; ``medium``: 256 px;
             ``paper``: 1024x512, local enhancer, GPU); ``overrides`` replace fields of it, e.g. ``{"ngf": 64}``.
-        minutes: wall-clock budget of this call; ``epochs``: total epochs. One of them is required.
-        resume: continue the run in ``out`` exactly.
+        minutes: wall-clock training time of the run in all (every call together); ``epochs``: total epochs.
+            One of them is required.
+        resume: continue the run in ``out`` exactly; Ctrl-C or SIGTERM saves a checkpoint, then raises
+            :class:`KeyboardInterrupt`.
         poses: a pose file of ``video`` to use instead of extracting poses.
         vgg_weights: local torchvision vgg19 weights (.pth/.safetensors) for the perceptual loss (off without).
         checkpoint_every, sample_every: steps between checkpoints and between sample grids.

@@ -20,6 +20,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import shutil
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -27,7 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dancesynth.core.checkpoint import load_meta
+from dancesynth.core.checkpoint import load_meta, update_meta
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
 from dancesynth.core.motion import (
@@ -414,7 +415,7 @@ def obtain_classifier(ds: DanceDataset, options: EvaluationOptions) -> tuple[Loa
     """The classifier given by ``options.classifier``, else the one cached in ``DATA/style_classifier/PRESET``
     (trained there first when missing or trained on other clips). Returns it and the folder it lives in."""
     from dancesynth.core.device import resolve_device
-    from stage1_pose.style_classifier import PRESETS, load_style_classifier, save_style_classifier, train_on_dataset
+    from stage1_pose.style_classifier import KIND, load_style_classifier, train_on_dataset
 
     device = resolve_device(options.device)
     if options.classifier is not None:
@@ -424,8 +425,9 @@ def obtain_classifier(ds: DanceDataset, options: EvaluationOptions) -> tuple[Loa
     meta_path = run_dir / "latest.json"
     if meta_path.is_file() and json.loads(meta_path.read_text()).get("train_key") == key:
         return load_style_classifier(run_dir, device), str(run_dir)
-    clf, test_acc = train_on_dataset(ds.root, PRESETS[options.classifier_preset], device)
-    save_style_classifier(run_dir, clf, {"train_key": key, "test_accuracy": test_acc})
+    shutil.rmtree(run_dir, ignore_errors=True)  # trained on other clips, or cut short: trained anew
+    clf, _ = train_on_dataset(ds.root, run_dir, options.classifier_preset, device=options.device)
+    update_meta(run_dir, KIND, {"train_key": key})
     return clf, str(run_dir)
 
 

@@ -12,6 +12,7 @@ canvas centre and joints relative to the root, in torso lengths) and their frame
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -22,10 +23,10 @@ import numpy as np
 import torch
 from torch import nn
 
-from dancesynth.core.checkpoint import POINTER, load_checkpoint, run_file_contents, save_checkpoint
+from dancesynth.core.checkpoint import POINTER, checkpoint_files, load_checkpoint, run_file_contents
 from dancesynth.core.config import config_from_dict, config_to_dict
+from dancesynth.core.device import resolve_device
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.progress import track
 from dancesynth.core.runs import RunFolder
 from dancesynth.core.skeleton import NUM_JOINTS, PoseSequence, normalize
 
@@ -135,16 +136,27 @@ class LoadedStyleClassifier:
         return int(logits.mean(axis=0).argmax()), feats.mean(axis=0), feats
 
 
-def train_style_classifier(dances: list[PoseSequence], labels: list[int], styles: list[str],
-                           config: StyleClassifierConfig, device: torch.device, seed: int = 0,
-                           progress: bool = True, run: RunFolder | None = None,
-                           checkpoint_every: int = 50) -> LoadedStyleClassifier:
-    """Train on random ``window_frames`` crops of labelled dances (label = index into ``styles``).
+@dataclass
+class _Position:
+    """How far a training got: optimiser ``step``s, and the loss summed over the ``count`` steps since the last
+    ``metrics.csv`` row."""
 
-    Cross-entropy, Adam; inputs standardised per dimension with statistics of all training frames.
-    With a run folder ``run`` (kind ``style_classifier``) a checkpoint is written every ``checkpoint_every``
-    steps and at the end, each with a ``metrics.csv`` row (mean loss since the previous one); a run opened
-    for resume continues exactly from its last checkpoint (``config.steps`` is the total).
+    step: int = 0
+    loss_sum: float = 0.0
+    count: int = 0
+
+
+def train_style_classifier(dances: list[PoseSequence], labels: list[int], styles: list[str],
+                           config: StyleClassifierConfig, device: torch.device, run: RunFolder, seed: int = 0,
+                           checkpoint_every: int = 50, minutes: float | None = None) -> LoadedStyleClassifier:
+    """Train on random ``window_frames`` crops of labelled dances (label = index into ``styles``) into the run
+    folder ``run`` (kind ``style_classifier``).
+
+    Cross-entropy, Adam; inputs standardised per dimension with statistics of all training frames. A checkpoint
+    is written every ``checkpoint_every`` steps and at the end, each with a ``metrics.csv`` row (mean loss since
+    the previous one); a run opened for resume continues exactly from its last checkpoint (``config.steps`` is
+    the total, ``minutes`` the wall-clock training time in all). Ctrl-C or SIGTERM saves, then raises
+    :class:`KeyboardInterrupt` (:meth:`~dancesynth.core.runs.RunFolder.training`).
     """
     if len(dances) != len(labels) or not dances:
         raise DancesynthError("The style classifier needs at least one labelled dance; "
@@ -162,48 +174,41 @@ def train_style_classifier(dances: list[PoseSequence], labels: list[int], styles
     model = StyleClassifier(config, len(styles)).to(device)
     opt = torch.optim.Adam(model.parameters(), lr=config.lr)
     clf = LoadedStyleClassifier(model, list(styles), mean, std, device)
-    start = 0
-    if run is not None and run.resumed:
+    at = _Position()
+    if run.resumed:
         meta, extra = run.restore(model, {"adam": opt})
-        start = meta["step"]
-        rng.bit_generator.state = extra["crops"]
+        with run_file_contents(checkpoint_files(run.path, meta)[1]):
+            at = _Position(int(meta["step"]), float(extra.get("loss_sum", 0.0)), int(extra.get("count", 0)))
+            rng.bit_generator.state = extra["crops"]
+
+    def save() -> dict[str, Any]:
+        return run.save(model, {**_meta(clf), "step": at.step, "seed": seed}, {"adam": opt},
+                        {"crops": rng.bit_generator.state, "loss_sum": at.loss_sum, "count": at.count})
+
     y_all = np.asarray(labels, dtype=np.int64)
     model.train()
-    with _one_cpu_thread(device):
-        _fit(clf, opt, feats, usable, y_all, config, rng, start, progress, run, checkpoint_every, seed)
-    if run is not None:
-        run.plot("loss.png")
-        run.close()
+    with _one_cpu_thread(device), run.training(save, minutes, config.steps, at.step, "style classifier") as session:
+        while at.step < config.steps and not session.stopped:
+            clip = rng.choice(usable, size=config.batch_size)
+            x = np.stack([feats[c][s: s + w] for c, s in
+                          ((c, rng.integers(0, len(feats[c]) - w + 1)) for c in clip)])
+            xb = torch.from_numpy(((x - mean) / std).astype(np.float32)).to(device)
+            logits, _ = model(xb)
+            loss = nn.functional.cross_entropy(logits, torch.from_numpy(y_all[clip]).to(device))
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+            at.step, at.loss_sum, at.count = at.step + 1, at.loss_sum + loss.item(), at.count + 1
+            session.step_done(at.step, loss=f"{loss.item():.3f}")
+            if at.step % checkpoint_every == 0 or at.step == config.steps:
+                run.log("metrics", {"step": at.step, "loss": at.loss_sum / at.count})
+                at.loss_sum, at.count = 0.0, 0
+                save()
+    if at.count:
+        save()  # the budget ran out between two checkpoints
+    run.plot("loss.png")
+    run.close()
     return clf
-
-
-def _fit(clf: LoadedStyleClassifier, opt: torch.optim.Optimizer, feats: list[np.ndarray], usable: list[int],
-         y_all: np.ndarray, config: StyleClassifierConfig, rng: np.random.Generator, start: int, progress: bool,
-         run: RunFolder | None, checkpoint_every: int, seed: int) -> None:
-    """The optimisation loop of :func:`train_style_classifier` on random window crops, from step ``start``."""
-    w = config.window_frames
-    model, mean, std, device = clf.model, clf.mean, clf.std, clf.device
-    total, count = 0.0, 0
-    bar = track(range(start, config.steps), desc="style classifier", disable=not progress)
-    for step in bar:
-        clip = rng.choice(usable, size=config.batch_size)
-        x = np.stack([feats[c][s: s + w] for c, s in
-                      ((c, rng.integers(0, len(feats[c]) - w + 1)) for c in clip)])
-        xb = torch.from_numpy(((x - mean) / std).astype(np.float32)).to(device)
-        yb = torch.from_numpy(y_all[clip]).to(device)
-        logits, _ = model(xb)
-        loss = nn.functional.cross_entropy(logits, yb)
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        bar.set_postfix(loss=f"{loss.item():.3f}")
-        total, count = total + loss.item(), count + 1
-        done = step + 1
-        if run is not None and (done % checkpoint_every == 0 or done == config.steps):
-            run.log("metrics", {"step": done, "loss": total / count})
-            run.save(model, {**_meta(clf), "step": done, "seed": seed}, {"adam": opt},
-                     {"crops": rng.bit_generator.state})
-            total, count = 0.0, 0
 
 
 def _meta(clf: LoadedStyleClassifier) -> dict[str, Any]:
@@ -212,15 +217,8 @@ def _meta(clf: LoadedStyleClassifier) -> dict[str, Any]:
             "input_mean": clf.mean.tolist(), "input_std": clf.std.tolist()}
 
 
-def save_style_classifier(run_dir: str | os.PathLike, clf: LoadedStyleClassifier,
-                          extra: dict[str, Any] | None = None) -> None:
-    """Save as a checkpoint of kind ``style_classifier`` (weights + config, styles and input statistics in JSON)
-    without training state (e.g. the classifier ``dancesynth evaluate`` caches in the dataset)."""
-    save_checkpoint(run_dir, clf.model, {**_meta(clf), **(extra or {})})
-
-
 def load_style_classifier(run_dir: str | os.PathLike, device: torch.device) -> LoadedStyleClassifier:
-    """Inverse of :func:`save_style_classifier`."""
+    """The classifier a :func:`train_on_dataset` run folder holds."""
     state, meta = load_checkpoint(run_dir, KIND)
     with run_file_contents(Path(run_dir) / POINTER):
         model = StyleClassifier(config_from_dict(StyleClassifierConfig, meta["config"]), len(meta["styles"]))
@@ -234,23 +232,31 @@ def classifier_accuracy(clf: LoadedStyleClassifier, dances: list[PoseSequence], 
     return float(np.mean([clf.embed(d)[0] == y for d, y in zip(dances, labels)]))
 
 
-def train_on_dataset(data_dir: str | os.PathLike, config: StyleClassifierConfig, device: torch.device,
-                     seed: int = 0, progress: bool = True,
-                     run: RunFolder | None = None) -> tuple[LoadedStyleClassifier, float]:
-    """Train on the dance of every train-split clip of a dataset folder, labelled with the clip's style.
+def train_on_dataset(data_dir: str | os.PathLike, out_dir: str | os.PathLike, preset: str = "paper",
+                     steps: int | None = None, minutes: float | None = None, seed: int = 0, device: str = "auto",
+                     resume: bool = False) -> tuple[LoadedStyleClassifier, float]:
+    """Train on the dance of every train-split clip of a dataset folder, labelled with the clip's style, into the
+    run folder ``out_dir`` (:func:`train_style_classifier`) at ``preset``; ``steps`` replaces its total. With
+    ``resume`` the run continues exactly, with its own config and seed.
 
     Returns the classifier and its accuracy on the real dances of the test split (NaN when it has none),
-    which is the ceiling the ACC of generated dances can be read against. With ``run`` (see
-    :func:`train_style_classifier`) the final checkpoint's metadata also holds that accuracy and the dataset.
+    which is the ceiling the ACC of generated dances can be read against; the final checkpoint's metadata also
+    holds that accuracy and the dataset.
     """
     from stage1_pose.data.dataset import DanceDataset
 
+    dev = resolve_device(device)
+    run = RunFolder(out_dir, KIND, dev, resume=resume)
+    with run_file_contents(run.path / POINTER):
+        config = PRESETS[preset] if run.meta is None else config_from_dict(StyleClassifierConfig, run.meta["config"])
+        seed = seed if run.meta is None else int(run.meta["seed"])
+    if steps is not None:
+        config = dataclasses.replace(config, steps=steps)
     ds = DanceDataset(data_dir)
     train, test = ds.clips("train"), ds.clips("test")
     clf = train_style_classifier([ds.load_poses(c) for c in train], [ds.style_index(c) for c in train],
-                                 list(ds.styles), config, device, seed, progress, run)
+                                 list(ds.styles), config, dev, run, seed, minutes=minutes)
     accuracy = (classifier_accuracy(clf, [ds.load_poses(c) for c in test], [ds.style_index(c) for c in test])
                 if test else float("nan"))
-    if run is not None:
-        run.update_meta({"test_accuracy": accuracy, "data": str(data_dir)})
+    run.update_meta({"test_accuracy": accuracy, "data": str(data_dir)})
     return clf, accuracy

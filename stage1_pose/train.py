@@ -29,8 +29,7 @@ from dancesynth.core.checkpoint import POINTER, checkpoint_files, run_file_conte
 from dancesynth.core.config import config_from_dict, config_to_dict
 from dancesynth.core.device import resolve_device
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.progress import track
-from dancesynth.core.runs import RunFolder
+from dancesynth.core.runs import RunFolder, epoch_order
 from dancesynth.core.skeleton import body_scale
 from stage1_pose.data.dataset import DanceDataset, WindowDataset, collate
 from stage1_pose.models.base import Stage1Method
@@ -51,7 +50,8 @@ class TrainerConfig:
     (or the start of this invocation) is less than ``preview_gap_minutes`` ago, so methods with epochs of a few
     seconds do not spend a third of their time drawing previews. ``loss.png`` is redrawn after an epoch when
     the last drawing is at least ``plot_gap_seconds`` old, and at the end (drawing a dozen panels takes 1-2 s,
-    as long as a Dancing2Music epoch). ``minutes`` bounds this invocation's wall-clock time.
+    as long as a Dancing2Music epoch). ``minutes`` bounds the run's wall-clock training time in all (every call
+    together, :mod:`dancesynth.core.runs`).
     """
 
     epochs: int | None = None
@@ -73,16 +73,6 @@ def _count(value: Any) -> int:
     if isinstance(value, bool) or not isinstance(value, int) or value < 0:
         raise ValueError(f"{value!r} is not a whole number of at least 0")
     return value
-
-
-def epoch_order(num_items: int, seed: int, epoch: int, length: int = 0) -> list[int]:
-    """The shuffled window order of ``epoch``: depends only on ``seed`` and ``epoch`` (exact resume). ``length``
-    windows (0: ``num_items``, one pass), passing over the data in fresh permutations as often as needed."""
-    g = torch.Generator().manual_seed(seed * 1_000_003 + epoch)
-    order: list[int] = []
-    while len(order) < max(length, 1):
-        order += torch.randperm(num_items, generator=g).tolist()
-    return order[:length or num_items]
 
 
 def rank_batches(order: list[int], batch_size: int, rank: int, world: int) -> list[list[int]]:
@@ -147,9 +137,9 @@ class PoseTrainer:
         return {**self.meta_base, "epoch": self.epoch, "batch_index": self.batch_index, "step": self.step,
                 "epochs": self.epochs, "curriculum": self.method.curriculum_state()}
 
-    def save(self) -> None:
-        self.folder.save(self.method, self.meta(), self.method._optimizers,
-                         {"sums": dict(self.sums), "count": self.count})
+    def save(self) -> dict[str, Any]:
+        return self.folder.save(self.method, self.meta(), self.method._optimizers,
+                                {"sums": dict(self.sums), "count": self.count})
 
     def restore(self) -> None:
         meta, extra = self.folder.restore(self.method, self.method._optimizers)
@@ -185,50 +175,49 @@ class PoseTrainer:
 
     # --- the loop ----------------------------------------------------------------------------------------
     def run(self) -> dict[str, Any]:
+        """Train to ``epochs`` or until ``minutes`` are spent, then checkpoint; returns the final metadata.
+        Ctrl-C or SIGTERM saves, then raises :class:`KeyboardInterrupt` (:meth:`RunFolder.training`)."""
         opts = self.options
-        deadline = None if opts.minutes is None else time.monotonic() + opts.minutes * 60
         last_preview = last_plot = time.monotonic()
         self.method.train()
-        stopped = False
-        while self.epoch < self.epochs and not stopped:
-            started = time.monotonic()
-            order = epoch_order(len(self.data), opts.seed, self.epoch, self.epoch_windows)
-            batches = rank_batches(order, self.batch_size, self.rank, self.world)
-            # Its own generator: a DataLoader iterator otherwise draws a seed from the global RNG, which would
-            # make a resumed run's dropout/noise differ from the uninterrupted run's.
-            loader = torch.utils.data.DataLoader(self.data, batch_sampler=batches[self.batch_index:],
-                                                 collate_fn=collate, num_workers=opts.num_workers,
-                                                 generator=torch.Generator().manual_seed(opts.seed))
-            bar = track(loader, desc=f"{self.method_name} epoch {self.epoch + 1}/{self.epochs}", unit="batch",
-                       initial=self.batch_index, total=len(batches), disable=self.rank != 0, leave=False)
-            for batch in bar:
-                logs = self.method.training_step(batch.to(self.device), self.epoch)
-                for k, v in logs.items():
-                    self.sums[k] = self.sums.get(k, 0.0) + float(v)
-                self.count += 1
-                self.batch_index += 1
-                self.step += 1
-                bar.set_postfix({k: f"{v:.4f}" for k, v in logs.items()})
-                if self.step % opts.checkpoint_every == 0:
-                    self.save()
-                if deadline is not None and self.folder.agree(time.monotonic() > deadline):
-                    stopped = self.batch_index < len(batches)
-                    break
-            if stopped:
-                break
-            self.log_epoch(time.monotonic() - started)
-            if time.monotonic() - last_plot >= opts.plot_gap_seconds:
-                self.folder.plot("loss.png")
-                last_plot = time.monotonic()
-            self.epoch, self.batch_index, self.sums, self.count = self.epoch + 1, 0, {}, 0
-            if (opts.preview_every and self.epoch % opts.preview_every == 0 and self.rank == 0
-                    and time.monotonic() - last_preview >= opts.preview_gap_minutes * 60):
-                self.preview()
-                last_preview = time.monotonic()
-        self.save()
+        steps_per_epoch = (self.epoch_windows or len(self.data)) // self.batch_size
+        with self.folder.training(self.save, opts.minutes, self.epochs * steps_per_epoch, self.step,
+                                  f"{self.method_name} training") as session:
+            while self.epoch < self.epochs and not session.stopped:
+                started = time.monotonic()
+                order = epoch_order(len(self.data), opts.seed, self.epoch, self.epoch_windows)
+                batches = rank_batches(order, self.batch_size, self.rank, self.world)
+                # Its own generator: a DataLoader iterator otherwise draws a seed from the global RNG, which would
+                # make a resumed run's dropout/noise differ from the uninterrupted run's.
+                loader = torch.utils.data.DataLoader(self.data, batch_sampler=batches[self.batch_index:],
+                                                     collate_fn=collate, num_workers=opts.num_workers,
+                                                     generator=torch.Generator().manual_seed(opts.seed))
+                for batch in loader:
+                    logs = self.method.training_step(batch.to(self.device), self.epoch)
+                    for k, v in logs.items():
+                        self.sums[k] = self.sums.get(k, 0.0) + float(v)
+                    self.count += 1
+                    self.batch_index += 1
+                    self.step += 1
+                    if self.step % opts.checkpoint_every == 0:
+                        self.save()
+                    if session.step_done(self.step, epoch=self.epoch + 1, **{k: f"{v:.4f}" for k, v in logs.items()}):
+                        break
+                if self.batch_index < len(batches):
+                    break  # stopped inside the epoch: its row is logged when a resumed run ends it
+                self.log_epoch(time.monotonic() - started)
+                if time.monotonic() - last_plot >= opts.plot_gap_seconds:
+                    self.folder.plot("loss.png")
+                    last_plot = time.monotonic()
+                self.epoch, self.batch_index, self.sums, self.count = self.epoch + 1, 0, {}, 0
+                if (opts.preview_every and self.epoch % opts.preview_every == 0 and self.rank == 0
+                        and time.monotonic() - last_preview >= opts.preview_gap_minutes * 60):
+                    self.preview()
+                    last_preview = time.monotonic()
+        meta = self.save()
         self.folder.plot("loss.png")
         self.folder.close()
-        return self.meta()
+        return meta
 
 
 def train(method_name: str, data_dir: str | os.PathLike, out_dir: str | os.PathLike, preset: str = "small",
@@ -239,8 +228,8 @@ def train(method_name: str, data_dir: str | os.PathLike, out_dir: str | os.PathL
     ``out_dir``; returns the final checkpoint's metadata.
 
     ``overrides`` change fields of the method's ``preset`` config (ignored on resume: the run's own config is
-    used). ``epochs`` / ``minutes`` override ``options``; ``epochs`` is the total, so resuming with a larger
-    value extends a finished run.
+    used). ``epochs`` / ``minutes`` override ``options``; both are totals over every call, so resuming with a
+    larger value extends a finished run.
     """
     options = options or TrainerConfig()
     options = dataclasses.replace(options, epochs=epochs or options.epochs,

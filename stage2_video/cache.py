@@ -117,9 +117,8 @@ def train_for(video: str | os.PathLike, run_dir: str | os.PathLike, minutes: flo
     entry = read_entry(Path(run_dir))
     if _done(entry, minutes):
         return
-    trained = entry.trained_seconds if entry is not None else 0.0
-    train_video(video, run_dir, preset, TrainOptions(minutes=minutes - trained / 60), resume=entry is not None,
-                poses=poses, device=device, precision=precision)
+    train_video(video, run_dir, preset, TrainOptions(minutes=minutes), resume=entry is not None, poses=poses,
+                device=device, precision=precision)
 
 
 def appearance_model_for(video: str | os.PathLike, minutes: float, preset: str = "small",

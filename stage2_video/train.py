@@ -19,7 +19,6 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -34,9 +33,7 @@ from dancesynth.core.config import config_from_dict, config_to_dict
 from dancesynth.core.device import precision_name, resolve_device, resolve_precision
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path, require_file
-from dancesynth.core.interrupts import StopRequest, deferred_interrupts
-from dancesynth.core.progress import Progress, track
-from dancesynth.core.runs import RunFolder
+from dancesynth.core.runs import RunFolder, TrainingSession
 from stage2_video.composite import cache_plate
 from stage2_video.data import (
     KIND,
@@ -72,10 +69,11 @@ METHOD = "pix2pixhd"
 
 @dataclass
 class TrainOptions:
-    """How long and how often: ``minutes`` (wall-clock budget of this invocation) and/or ``epochs`` (total);
-    ``max_steps`` stops this invocation after that many steps (smoke tests, resume checks). A budget of 0 minutes or
-    0 steps takes no step: it prepares the run (poses, frames, masks, plate) and saves the untrained model, which
-    renders the warped prior alone (:attr:`Pix2PixHDConfig.prior`)."""
+    """How long and how often: ``minutes`` (wall-clock training time of the run in all, every call together:
+    :mod:`dancesynth.core.runs`) and/or ``epochs`` (total); ``max_steps`` stops this invocation after that many
+    steps (smoke tests, resume checks). A budget without a step left (0 minutes, or 0 steps) takes no step: it
+    prepares the run (poses, frames, masks, plate) and saves the model, untrained on a new run, which renders the
+    warped prior alone (:attr:`Pix2PixHDConfig.prior`)."""
 
     minutes: float | None = None
     epochs: int | None = None
@@ -119,7 +117,6 @@ class VideoTrainer:
         self.opt_g = torch.optim.Adam(self.model.generator.parameters(), lr=config.lr, betas=betas)
         self.opt_d = torch.optim.Adam(d_params, lr=config.lr, betas=betas)
         self.epoch, self.position, self.step = 0, 0, 0
-        self.trained_seconds = 0.0  # wall-clock seconds of training over every invocation of this run
         self.total_epochs = options.epochs or (config.epochs_constant + config.epochs_decay)
 
     # --- schedule -------------------------------------------------------------------------------------------
@@ -192,35 +189,20 @@ class VideoTrainer:
 
     # --- loop -----------------------------------------------------------------------------------------------
     def fit(self) -> dict:
-        """Train until ``epochs`` are done or the ``minutes`` budget is spent; checkpoint at the end."""
-        deadline = time.monotonic() + 60 * self.options.minutes if self.options.minutes is not None else math.inf
-        last_step = self.step + self.options.max_steps if self.options.max_steps is not None else math.inf
-        start = time.monotonic()
-        trained_before = self.trained_seconds
-        # Under a time budget progress counts seconds, so its "left" is the budget's; otherwise epochs.
-        if self.options.minutes is not None:
-            bar = track(total=round(60 * self.options.minutes), desc="training", unit="s", disable=self.rank != 0)
-        else:
-            bar = track(total=self.total_epochs, initial=self.epoch, desc="epochs", unit="epoch",
-                        disable=self.rank != 0)
-        # One process only: ranks of a multi-process run would stop at different steps and hang in a collective.
-        with deferred_interrupts(enabled=self.world == 1) as stop:
-            if self.options.minutes != 0 and self.options.max_steps != 0:
-                self._loop(deadline, last_step, start, trained_before, bar, stop)
-        bar.close()
-        if stop.requested:
-            # Ctrl-C or SIGTERM between two steps: the minutes trained are kept, quickly (no validation).
-            self.checkpoint(validate=False)
-            raise KeyboardInterrupt
+        """Train until ``epochs`` are done or the ``minutes`` budget is spent; checkpoint at the end. Ctrl-C or
+        SIGTERM saves quickly (no validation), then raises :class:`KeyboardInterrupt`."""
+        total_steps = self.total_epochs * len(self._batches())
+        with self.folder.training(lambda: self.checkpoint(validate=False), self.options.minutes, total_steps,
+                                  self.step, "training") as session:
+            self._loop(session)
         self.write_samples()
         meta = self.checkpoint()
         self.folder.close()
         return meta
 
-    def _loop(self, deadline: float, last_step: float, start: float, trained_before: float, bar: Progress,
-              stop: StopRequest) -> None:
-        out_of_time = False
-        while self.epoch < self.total_epochs and not out_of_time:
+    def _loop(self, session: TrainingSession) -> None:
+        last_step = self.step + self.options.max_steps if self.options.max_steps is not None else math.inf
+        while self.epoch < self.total_epochs and not session.stopped and self.step < last_step:
             for g in (*self.opt_g.param_groups, *self.opt_d.param_groups):
                 g["lr"] = self.lr()
             batches = self._batches()
@@ -230,28 +212,20 @@ class VideoTrainer:
                 losses = self.train_step(batch)
                 self.position += 1
                 self.step += 1
-                elapsed = time.monotonic() - start
-                self.trained_seconds = trained_before + elapsed
-                self._log(losses, elapsed)
-                if self.options.minutes:
-                    bar.update(min(bar.total, int(elapsed)) - bar.n)
-                bar.set_postfix(step=self.step, d=f"{losses['d']:.3f}", l1=f"{losses['g_l1']:.3f}")
+                stop = session.step_done(self.step, d=f"{losses['d']:.3f}", l1=f"{losses['g_l1']:.3f}")
+                self._log(losses)
                 if self.step % self.options.sample_every == 0:
                     self.write_samples()
                 if self.step % self.options.checkpoint_every == 0:
                     self.checkpoint()
-                if time.monotonic() >= deadline or self.step >= last_step or stop.requested:
-                    out_of_time = True
-                    break
-            if not out_of_time:
-                self.epoch, self.position = self.epoch + 1, 0
-                if not self.options.minutes:
-                    bar.update(1)
+                if stop or self.step >= last_step:
+                    return
+            self.epoch, self.position = self.epoch + 1, 0
 
     # --- outputs (rank 0 only) ------------------------------------------------------------------------------
-    def _log(self, losses: dict[str, float], seconds: float) -> None:
+    def _log(self, losses: dict[str, float]) -> None:
         self.folder.log("losses", {"step": self.step, "epoch": self.epoch, "lr": self.lr(), **losses,
-                                   "seconds": round(seconds, 1)})
+                                   "seconds": round(self.folder.trained_seconds, 1)})
 
     def _generate(self, label: torch.Tensor, previous: torch.Tensor | None = None) -> torch.Tensor:
         """The model's frame for a ``[1, C, H, W]`` condition; before its first step a model conditioned on the warped
@@ -313,7 +287,6 @@ class VideoTrainer:
             stats = None  # the target never shows head and ankles together: render with --no-normalize only
         return {"kind": KIND, "method": METHOD, "config": config_to_dict(self.config), "epoch": self.epoch,
                 "position": self.position, "step": self.step, "total_epochs": self.total_epochs,
-                "trained_seconds": round(self.trained_seconds, 1),
                 "framing": self.target.framing.to_dict(), "target_stats": stats, "fps": poses.fps,
                 "canvas": [poses.width, poses.height], "video": self.source_video, "vgg": self.vgg is not None,
                 "seed": self.options.seed, "precision": precision_name(self.precision),
@@ -329,7 +302,7 @@ class VideoTrainer:
         if self.folder.writer and validate:
             meta["validation"] = self.validate()
             self.folder.log("validation", {"step": self.step, "epoch": self.epoch, **meta["validation"]})
-        self.folder.save(self.model, meta, self.optimizers(), {"scaler": self.scaler.state_dict()})
+        meta = self.folder.save(self.model, meta, self.optimizers(), {"scaler": self.scaler.state_dict()})
         self.folder.plot("losses.png")
         return meta
 
@@ -342,7 +315,6 @@ class VideoTrainer:
         with run_file_contents(self.folder.path / POINTER):
             self.epoch, self.position, self.step, total = (int(meta[key]) for key in
                                                            ("epoch", "position", "step", "total_epochs"))
-            self.trained_seconds = float(meta.get("trained_seconds", 0.0))
         self.total_epochs = self.options.epochs or total
 
 

@@ -1,5 +1,6 @@
-"""Shared fixtures: a tiny stage-1 dataset whose music features are pre-cached, so no test waits for librosa, and
-drum loops with known beats."""
+"""Shared fixtures: a tiny stage-1 dataset whose music features are pre-cached, so no test waits for librosa, drum
+loops with known beats, and a tiny target video with the config of an appearance model small enough to train in a
+second."""
 
 import os
 
@@ -15,16 +16,22 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 import soundfile  # noqa: E402
 
+from dancesynth.core.draw import draw_pose  # noqa: E402
+from dancesynth.core.media import write_video  # noqa: E402
 from dancesynth.core.skeleton import PoseSequence  # noqa: E402
 from stage1_pose.data.dataset import Clip, clip_paths, create_layout, write_beats, write_manifest  # noqa: E402
-from stage1_pose.features import feature_dim  # noqa: E402
+from stage1_pose.features import cache_name, feature_dim  # noqa: E402
 
 FPS, SR, SECONDS = 15.0, 8000, 8.0
 
 
-def write_tiny_stage1_dataset(root: Path, splits=("train", "train", "train", "val", "test")) -> Path:
-    """Clips of 8 s: a click track at 120 BPM, a body swaying on the beat, random cached features."""
+def write_tiny_stage1_dataset(root: Path, splits=("train", "train", "train", "val", "test"),
+                              styles=("hiphop",), more_features=()) -> Path:
+    """Clips of 8 s: a click track at 120 BPM, a body swaying on the beat, random cached features of the
+    ``dance_revolution`` kind and the kinds in ``more_features``; clip i of ``splits`` has the style
+    ``styles[i % len(styles)]``."""
     rng = np.random.default_rng(0)
+    more_rng = np.random.default_rng(1)
     create_layout(root)
     frames = int(SECONDS * FPS)
     t = np.arange(frames) / FPS
@@ -45,8 +52,12 @@ def write_tiny_stage1_dataset(root: Path, splits=("train", "train", "train", "va
         feats = root / "features" / "dance_revolution"
         feats.mkdir(parents=True, exist_ok=True)
         np.save(feats / f"{cid}.npy", rng.standard_normal((frames, feature_dim("dance_revolution"))).astype(np.float32))
-        clips.append(Clip(cid, f"song{i}", "hiphop", split, **paths))
-    write_manifest(root, FPS, SR, ["hiphop"], clips)
+        for kind in more_features:
+            folder = root / "features" / cache_name(kind)
+            folder.mkdir(parents=True, exist_ok=True)
+            np.save(folder / f"{cid}.npy", more_rng.standard_normal((frames, feature_dim(kind))).astype(np.float32))
+        clips.append(Clip(cid, f"song{i}", styles[i % len(styles)], split, **paths))
+    write_manifest(root, FPS, SR, list(styles), clips)
     return root
 
 
@@ -103,3 +114,43 @@ def write_truncated_video(frames: list[np.ndarray], path: Path, fps: float = 15.
 def truncated_video():
     """:func:`write_truncated_video`: ``truncated_video(frames, path, fps=15)`` -> path."""
     return write_truncated_video
+
+
+TINY_APPEARANCE = {"width": 32, "height": 32, "ngf": 8, "n_downsample": 2, "n_blocks": 1, "ndf": 8, "batch_size": 4}
+
+
+def swaying_poses(frames: int = 24, width: int = 64, height: int = 64) -> PoseSequence:
+    """A stick figure swaying left and right, its whole body visible."""
+    t = np.arange(frames)[:, None]
+    base = np.array([[0, -22], [0, -16], [-6, -16], [-10, -8], [-12, 0], [6, -16], [10, -8], [12, 0], [0, 0],
+                     [-4, 0], [-5, 10], [-5, 20], [4, 0], [5, 10], [5, 20], [-1, -23], [1, -23], [-2, -22],
+                     [2, -22], [7, 22], [8, 22], [4, 21], [-7, 22], [-8, 22], [-4, 21]], np.float32)
+    kp = np.ones((frames, 25, 3), np.float32)
+    kp[..., 0] = width / 2 + base[:, 0] + 6 * np.sin(t / 3)
+    kp[..., 1] = height / 2 + base[:, 1]
+    kp[:, [4, 7], 1] += 6 * np.cos(t / 2)  # waving wrists
+    return PoseSequence(kp, 15.0, width, height)
+
+
+@pytest.fixture(scope="session")
+def tiny_config() -> dict:
+    """Config overrides for a network small enough to train in a second."""
+    return dict(TINY_APPEARANCE)
+
+
+@pytest.fixture(scope="session")
+def make_poses():
+    """:func:`swaying_poses`, for tests that need pose sequences of their own."""
+    return swaying_poses
+
+
+@pytest.fixture(scope="session")
+def tiny_target(tmp_path_factory) -> tuple[Path, Path]:
+    """(video.mp4, poses.npz): each frame shows the skeleton thickly drawn on a grey background."""
+    folder = tmp_path_factory.mktemp("target")
+    seq = swaying_poses()
+    frames = [draw_pose(np.full((seq.height, seq.width, 3), 90, np.uint8), kp, thickness=3) for kp in seq.keypoints]
+    video, poses = folder / "target.mp4", folder / "poses.npz"
+    write_video(video, frames, seq.fps)
+    seq.save(poses)
+    return video, poses

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import logging
 
-from apps.arguments import non_negative_float, non_negative_int, output_folder, positive_float, positive_int
+from apps.arguments import add_trainer_arguments, non_negative_float, non_negative_int, output_folder, positive_int
 from apps.config_flags import add_config_arguments, print_config, resolve_config
 from dancesynth.core.config import config_to_dict
 
@@ -19,8 +19,9 @@ Train a stage-1 method on DATA (a folder made by `dancesynth make-dataset`) into
   RUN_DIR/previews/epoch_XXXX.mp4             a generated dance for a validation song every --preview-every epochs
                                               (at most one per --preview-gap minutes)
 
---resume continues a stopped or killed run exactly (same final weights as an uninterrupted run); with a
-larger --epochs it extends a finished one. The method config is the --preset (small: CPU, minutes; paper:
+Ctrl-C or SIGTERM saves a checkpoint first; --resume continues a stopped or killed run exactly (same final
+weights as an uninterrupted run); --epochs and --minutes are the run's totals, so larger ones extend a finished
+run. The method config is the --preset (small: CPU, minutes; paper:
 published settings), then the settings of a --config TOML file, then --batch-size / --window, then each
 --set FIELD=VALUE (e.g. --set lstm_hidden=256 --set curriculum=quadratic); --print-config shows the result
 and exits without training.
@@ -48,10 +49,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--preset", default="small", help="config preset: small (CPU) or paper (default small)")
     add_config_arguments(parser, "hidden=256")
     parser.add_argument("--epochs", type=positive_int, help="total epochs (default: the preset's)")
-    parser.add_argument("--minutes", type=positive_float, help="stop (with a checkpoint) after this many minutes")
+    add_trainer_arguments(parser, "--epochs")
     parser.add_argument("--batch-size", type=positive_int, help="global batch size in windows (default: the preset's)")
     parser.add_argument("--window", type=positive_int, metavar="FRAMES", help="training window length in pose frames")
-    parser.add_argument("--resume", action="store_true", help="continue the run in RUN_DIR exactly")
     parser.add_argument("--checkpoint-every", type=positive_int, default=200, metavar="STEPS")
     parser.add_argument("--preview-every", type=non_negative_int, default=10, metavar="EPOCHS", help="0 = no previews")
     parser.add_argument("--preview-gap", type=non_negative_float, default=2.0, metavar="MINUTES",

@@ -6,7 +6,7 @@ import argparse
 import logging
 from pathlib import Path
 
-from apps.arguments import non_negative_int, output_folder, positive_int
+from apps.arguments import add_trainer_arguments, non_negative_int, output_folder, positive_int
 
 NAME = "train-stgcn"
 HELP = "train the ST-GCN style classifier used by the ren method's pose perceptual loss"
@@ -18,7 +18,8 @@ was trained on another dataset and is not available, so train one here first.
 
 The run folder receives a checkpoint after every epoch (weights as safetensors, a JSON sidecar latest.json
 with kind "stgcn", config, style names and, at the end, train and validation accuracy), metrics.csv and
-loss.png; --resume continues a stopped training exactly. Pass the folder to the ren method's full presets
+loss.png. Ctrl-C or SIGTERM saves a checkpoint first, --resume continues a stopped training exactly, and
+--minutes bounds the run's training time in all. Pass the folder to the ren method's full presets
 (`small`, `paper`) as described in docs/methods/ren.md.
 
 presets: small (4 narrow blocks, CPU, minutes) | paper (10 blocks as in ST-GCN, lr 0.002 as Ren et al.)
@@ -36,11 +37,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--data", type=Path, required=True, help="dataset folder written by make-dataset")
     parser.add_argument("--out", type=output_folder, required=True, metavar="RUN_DIR",
                         help="run folder to create (or continue with --resume)")
-    parser.add_argument("--resume", action="store_true",
-                        help="continue the run in --out exactly (its preset and seed; --epochs sets a new total)")
     parser.add_argument("--preset", choices=("paper", "small"), default="small",
                         help="network size and training settings (default %(default)s)")
     parser.add_argument("--epochs", type=positive_int, help="total epochs (default: the preset's or the run's)")
+    add_trainer_arguments(parser, "--epochs")
     parser.add_argument("--device", default="auto", help="auto | cpu | cuda (default %(default)s)")
     parser.add_argument("--seed", type=non_negative_int, default=0, help="random seed (default %(default)s)")
 
@@ -51,6 +51,6 @@ def run(args: argparse.Namespace) -> None:
 
     check_outputs({}, {"dataset": args.data}, folders={"run folder": args.out})
     result = train_stgcn(args.data, args.out, preset=args.preset, epochs=args.epochs, device=args.device,
-                         seed=args.seed, resume=args.resume)
+                         seed=args.seed, resume=args.resume, minutes=args.minutes)
     logger.info(f"ST-GCN trained for {result['epochs']} epochs: train accuracy {result['train_accuracy']:.1%}, "
                 f"validation accuracy {result['val_accuracy']:.1%}; saved to {args.out}")

@@ -7,10 +7,10 @@ import logging
 
 from apps.arguments import (
     add_precision_argument,
+    add_trainer_arguments,
     existing_file,
     non_negative_int,
     output_folder,
-    positive_float,
     positive_int,
 )
 from apps.config_flags import add_config_arguments, chosen_fields, print_config, resolve_config
@@ -26,7 +26,8 @@ target person. Poses are extracted from the video with the bundled BlazePose and
 is held out: RUN_DIR/validation.csv reports SSIM / PSNR on it at every checkpoint, RUN_DIR/samples/ has PNG
 grids (real | skeleton | generated), RUN_DIR/losses.csv and losses.png the losses.
 
-Stops cleanly after --minutes (checkpointing) or --epochs; --resume continues exactly where it stopped.
+Stops with a checkpoint when the run has trained --minutes in all (every call together) or --epochs, and on
+Ctrl-C or SIGTERM; --resume continues exactly where it stopped.
 The model config is the --preset, then the settings of a --config TOML file, then --size / --batch-size, then
 each --set FIELD=VALUE (e.g. --set lambda_l1=5); --print-config shows the result and exits without training.
 Without --vgg-weights the VGG19 perceptual loss is off (a notice says so); nothing is downloaded.
@@ -35,7 +36,7 @@ Multi-process: torchrun --nproc_per_node N -m apps.cli train-video ...
 examples:
   dancesynth train-video person.mp4 --out runs/person --minutes 20
   dancesynth train-video synthetic.mp4 --poses synthetic_poses.npz --out runs/synth --minutes 20
-  dancesynth train-video person.mp4 --out runs/person --resume --minutes 10
+  dancesynth train-video person.mp4 --out runs/person --resume --minutes 30   # 10 more minutes
   dancesynth train-video person.mp4 --out runs/hd --preset paper --device cuda --vgg-weights vgg19.pth --epochs 200
   dancesynth train-video person.mp4 --out runs/p --set ngf=64 --set n_blocks=6 --print-config > model.toml
   dancesynth train-video person.mp4 --out runs/p --config model.toml --minutes 20
@@ -52,10 +53,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--preset", choices=preset_names(), default="small",
                         help=f"the model's preset (default small); {describe_presets()}")
     parser.add_argument("--size", metavar="WxH", help="model resolution override, e.g. 256x256 (multiple of 8)")
-    parser.add_argument("--minutes", type=positive_float, help="wall-clock budget of this invocation, in minutes")
     parser.add_argument("--epochs", type=positive_int, help="total epochs (default: the preset's 100 + 100 decaying)")
+    add_trainer_arguments(parser, "--epochs")
     parser.add_argument("--batch-size", type=positive_int, help="consecutive-frame pairs per step (preset default)")
-    parser.add_argument("--resume", action="store_true", help="continue the run in RUN_DIR exactly")
     parser.add_argument("--poses", type=existing_file, metavar="POSES.npz",
                         help="poses of TARGET_VIDEO to use instead of extracting")
     parser.add_argument("--vgg-weights", type=existing_file, metavar="FILE",

@@ -662,7 +662,7 @@ class WebApp:
         return self.jobs.create("dance", f"{song['name']} danced by {target}", params, command)
 
     def _train_job(self, body: dict) -> dict:
-        from stage2_video.cache import entry_path
+        from stage2_video.cache import entry_path, read_entry
 
         minutes = _number(body, "minutes", 10.0, 0.05, 24 * 60, "training budget (minutes)")
         if body.get("model"):
@@ -679,8 +679,11 @@ class WebApp:
             video, name = Path(upload["path"]), upload["name"]
             preset = resolve_preset(body.get("preset", AUTO), self.device)
         entry = entry_path(video, preset, self.cache)
+        trained = read_entry(entry)
+        # train-video's --minutes counts the run's time in all: the minutes asked for come on top of what it has.
+        in_all = minutes + (trained.trained_seconds / 60 if trained is not None else 0.0)
         command = shlex.join(["dancesynth", "train-video", str(video), "--out", str(entry), "--preset", preset,
-                              "--minutes", f"{minutes:g}", *(["--resume"] if (entry / "latest.json").is_file() else []),
+                              "--minutes", f"{in_all:g}", *(["--resume"] if trained is not None else []),
                               *self._device_flag()])
         return self.jobs.create("train", f"appearance model of {name}, {minutes:g} min more",
                                 {"target": str(video), "minutes": minutes, "preset": preset, "entry": entry.name},

@@ -2,7 +2,8 @@
 
 A training interrupted in the middle of an optimizer update would save a half-applied step; inside
 :func:`deferred_interrupts` the first SIGINT / SIGTERM only sets :attr:`StopRequest.requested`, which the loop
-checks between steps, and a second one raises :class:`KeyboardInterrupt` at once (a user who insists).
+checks between steps, and a second one raises :class:`KeyboardInterrupt` at once (a user who insists). Every
+trainer's loop runs inside it through :meth:`dancesynth.core.runs.RunFolder.training`.
 """
 
 from __future__ import annotations
@@ -25,11 +26,11 @@ class StopRequest:
 
 
 @contextlib.contextmanager
-def deferred_interrupts(enabled: bool = True) -> Iterator[StopRequest]:
-    """Defer SIGINT / SIGTERM while the block runs (main thread only; elsewhere, or when not ``enabled``, signals
-    keep their handlers and the request never turns true). The previous handlers come back afterwards."""
+def deferred_interrupts() -> Iterator[StopRequest]:
+    """Defer SIGINT / SIGTERM while the block runs (main thread only; in another thread signals keep their
+    handlers and the request never turns true). The previous handlers come back afterwards."""
     request = StopRequest()
-    if not enabled or threading.current_thread() is not threading.main_thread():
+    if threading.current_thread() is not threading.main_thread():
         yield request
         return
 

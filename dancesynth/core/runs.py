@@ -11,6 +11,21 @@ A trainer opens its ``--out`` folder as a :class:`RunFolder` (in every process w
   (:mod:`dancesynth.core.checkpoint`); it records how many rows each table has, so resume is exact;
 * ``run.plot(name)`` draws every table's curves into one PNG; ``run.close()`` at the end.
 
+The loop itself runs inside ``with run.training(save, minutes, total_steps, step, desc) as session`` and calls
+``session.step_done(step, ...)`` after every optimiser step, leaving the loop when it returns True. That gives
+every trainer the same behaviour:
+
+* **Time budget**: ``minutes`` is the run's wall-clock training time *in all*, over every call, like ``epochs``
+  and ``steps`` are totals: each checkpoint records ``trained_seconds``, and a resumed run trains only what its
+  budget has left (none: no step), so an interrupted call re-run with the same flags ends where an
+  uninterrupted one would.
+* **Ctrl-C and SIGTERM**: the first signal stops the loop after the step it interrupts (the second raises at
+  once, :mod:`dancesynth.core.interrupts`); ``save()`` writes a checkpoint, then :class:`KeyboardInterrupt`
+  propagates (the CLI exits 130). ``--resume`` continues from that step exactly.
+* **Progress**: one counter over the run, seconds of the budget with ``minutes`` (so "left" is the budget's),
+  else steps (left estimated from the step rate), with the step and the values the trainer shows.
+* **Several processes** stop at the same step: rank 0's decision is everyone's (:meth:`RunFolder.agree`).
+
 Distributed training (``torchrun``): the folder joins the process group from the environment (gloo on CPU,
 nccl on GPU); :meth:`RunFolder.average_gradients` averages gradients over processes (DistributedDataParallel's
 arithmetic without its wrapper, which assumes one backward per step and so does not fit GANs). ``save`` is
@@ -19,9 +34,12 @@ collective (each process's RNG state is kept); only rank 0 writes files.
 
 from __future__ import annotations
 
+import contextlib
 import csv
+import math
 import os
-from collections.abc import Iterable
+import time
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -32,7 +50,9 @@ from torch import nn
 from dancesynth.core import checkpoint as ckpt
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
+from dancesynth.core.interrupts import StopRequest, deferred_interrupts
 from dancesynth.core.plots import plot_metrics
+from dancesynth.core.progress import Progress, track
 
 
 def init_distributed(device: torch.device) -> tuple[int, int]:
@@ -57,6 +77,16 @@ def average_gradients(params: Iterable[nn.Parameter], world: int) -> None:
     for g in grads:
         g.copy_(flat[offset:offset + g.numel()].view_as(g))
         offset += g.numel()
+
+
+def epoch_order(num_items: int, seed: int, epoch: int, length: int = 0) -> list[int]:
+    """The shuffled item order of ``epoch``: depends only on ``seed`` and ``epoch``, so a resumed run finds its
+    place in it again. ``length`` items (0: ``num_items``, one pass), in fresh permutations as often as needed."""
+    g = torch.Generator().manual_seed(seed * 1_000_003 + epoch)
+    order: list[int] = []
+    while len(order) < max(length, 1):
+        order += torch.randperm(num_items, generator=g).tolist()
+    return order[:length or num_items]
 
 
 def append_row(csv_path: Path, row: dict[str, Any]) -> None:
@@ -119,6 +149,11 @@ class RunFolder:
         if not resume and ckpt.has_checkpoint(self.path):
             raise DancesynthError(f"{self.path} already holds a trained model; pass --resume to continue it "
                                   "or choose a new --out folder.")
+        # Wall-clock seconds of training over every call of the run: what a time budget counts.
+        self.trained_seconds = 0.0
+        if self.meta is not None:
+            with ckpt.run_file_contents(self.path / ckpt.POINTER):
+                self.trained_seconds = float(self.meta.get("trained_seconds", 0.0))
         self._rows = {name: 0 for name in tables}
         self._tensorboard: Any = None
         self._purge_step: int | None = None
@@ -160,20 +195,22 @@ class RunFolder:
 
     # --- checkpoints ------------------------------------------------------------------------------------------
     def save(self, model: nn.Module, meta: dict[str, Any], optimizers: dict[str, torch.optim.Optimizer],
-             extra: dict[str, Any] | None = None) -> None:
-        """Checkpoint ``model`` with ``meta`` (JSON: ``kind`` is added, ``step`` is expected), the optimizer
-        states, every process's RNG states, the metrics tables' lengths and the trainer's ``extra`` state
-        (tensors, numbers, strings, lists, dicts). Call it in every process."""
+             extra: dict[str, Any] | None = None) -> dict[str, Any]:
+        """Checkpoint ``model`` with ``meta`` (JSON: ``kind`` and ``trained_seconds`` are added, ``step`` is
+        expected), the optimizer states, every process's RNG states, the metrics tables' lengths and the
+        trainer's ``extra`` state (tensors, numbers, strings, lists, dicts). Call it in every process; returns
+        the metadata saved."""
+        meta = {**meta, "kind": self.kind, "trained_seconds": round(self.trained_seconds, 1)}
         rng = ckpt.capture_rng_state()
         rngs: list[Any] = [rng]
         if self.world > 1:
             rngs = [None] * self.world
             dist.all_gather_object(rngs, rng)
-        if not self.writer:
-            return
-        state = {"optimizers": {name: opt.state_dict() for name, opt in optimizers.items()}, "rng": rngs,
-                 "rows": dict(self._rows), "extra": extra or {}}
-        ckpt.save_checkpoint(self.path, model, {**meta, "kind": self.kind}, state)
+        if self.writer:
+            state = {"optimizers": {name: opt.state_dict() for name, opt in optimizers.items()}, "rng": rngs,
+                     "rows": dict(self._rows), "extra": extra or {}}
+            ckpt.save_checkpoint(self.path, model, meta, state)
+        return meta
 
     def restore(self, model: nn.Module,
                 optimizers: dict[str, torch.optim.Optimizer]) -> tuple[dict[str, Any], dict[str, Any]]:
@@ -211,6 +248,26 @@ class RunFolder:
         if self.writer:
             self.meta = ckpt.update_meta(self.path, self.kind, entries)
 
+    # --- the training loop ------------------------------------------------------------------------------------
+    @contextlib.contextmanager
+    def training(self, save: Callable[[], object], minutes: float | None, total_steps: int, step: int,
+                 desc: str) -> Iterator[TrainingSession]:
+        """Run a trainer's loop under the protocol of the module docstring: Ctrl-C / SIGTERM deferred to the
+        end of a step, then ``save()`` (the trainer's checkpoint) and :class:`KeyboardInterrupt`; ``minutes``
+        of training in all (None: no limit); progress over ``total_steps`` optimiser steps in all, ``step`` of
+        them done before this call."""
+        with deferred_interrupts() as stop:
+            session = TrainingSession(self, stop, minutes, total_steps, step, desc)
+            try:
+                yield session
+            finally:
+                session.progress.close()
+            # Every process saves, or none: a signal that reached only some of them counts as rank 0 sees it.
+            interrupted = self.agree(stop.requested)
+        if interrupted:
+            save()
+            raise KeyboardInterrupt
+
     # --- logs -------------------------------------------------------------------------------------------------
     def log(self, table: str, row: dict[str, Any]) -> None:
         """Append ``row`` (it has a ``step`` entry) to ``TABLE.csv`` and its numbers to TensorBoard. Rank 0 only."""
@@ -245,3 +302,34 @@ class RunFolder:
         if self._tensorboard:
             self._tensorboard.close()
         self._tensorboard = None
+
+
+class TrainingSession:
+    """One call of a trainer's loop, made by :meth:`RunFolder.training`: the budget, the stop request and the
+    progress counter. :attr:`stopped` is True once the loop must end (from the start when the budget is spent)."""
+
+    def __init__(self, run: RunFolder, stop: StopRequest, minutes: float | None, total_steps: int, step: int,
+                 desc: str) -> None:
+        self._run, self._stop = run, stop
+        self._budget_s = math.inf if minutes is None else 60.0 * minutes
+        self._trained_before = run.trained_seconds
+        self._start = time.monotonic()
+        self.stopped = run.agree(self._trained_before >= self._budget_s)
+        # Under a budget progress counts its seconds, so "left" is the budget's; otherwise steps.
+        self._seconds = minutes is not None
+        if self._seconds:
+            total = round(self._budget_s)
+            initial = min(total, round(self._trained_before))
+            self.progress: Progress = track(total=total, initial=initial, desc=desc, unit="s", disable=not run.writer)
+        else:
+            self.progress = track(total=total_steps, initial=step, desc=desc, unit="step", disable=not run.writer)
+
+    def step_done(self, step: int, **shown: Any) -> bool:
+        """Count an optimiser step (``step``: the run's steps so far) and show ``shown`` (e.g. losses); True when
+        the loop must end now: the budget is spent or a stop was asked for (in every process alike)."""
+        self._run.trained_seconds = self._trained_before + time.monotonic() - self._start
+        bar = self.progress
+        bar.update(min(bar.total or 0, int(self._run.trained_seconds)) - bar.n if self._seconds else 1)
+        bar.set_postfix(step=step, **shown)
+        self.stopped = self._run.agree(self._stop.requested or self._run.trained_seconds >= self._budget_s)
+        return self.stopped

@@ -20,17 +20,6 @@ def _first_asks_second_interrupts() -> None:
         os._exit(0 if signal.getsignal(signal.SIGTERM) is before else 4)
 
 
-def _disabled_leaves_signals_alone() -> None:
-    # Python's own Ctrl-C handler, which a shell's background job (SIGINT ignored) would not have installed.
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    try:
-        with deferred_interrupts(enabled=False):
-            os.kill(os.getpid(), signal.SIGINT)
-        os._exit(3)
-    except KeyboardInterrupt:
-        os._exit(0)
-
-
 def _exit_code(target) -> int:
     child = multiprocessing.get_context("spawn").Process(target=target)
     child.start()
@@ -40,7 +29,3 @@ def _exit_code(target) -> int:
 
 def test_first_signal_asks_to_stop_second_interrupts_and_handlers_come_back():
     assert _exit_code(_first_asks_second_interrupts) == 0
-
-
-def test_disabled_leaves_signals_alone():
-    assert _exit_code(_disabled_leaves_signals_alone) == 0

@@ -5,14 +5,17 @@ import pytest
 import torch
 
 from dancesynth.core.errors import DancesynthError
+from dancesynth.core.runs import RunFolder
 from dancesynth.core.skeleton import PoseSequence
 from stage1_pose.style_classifier import (
+    KIND,
     PRESETS,
     classifier_accuracy,
     load_style_classifier,
-    save_style_classifier,
     train_style_classifier,
 )
+
+CPU = torch.device("cpu")
 
 
 @pytest.fixture(autouse=True, scope="module")
@@ -51,8 +54,8 @@ def test_classifier_learns_separable_toy_styles_and_round_trips(tmp_path):
     styles = ["wave", "bounce", "sway"]
     train = [(toy_dance(s, seed), s) for seed in range(8) for s in range(3)]
     test = [(toy_dance(s, 100 + seed), s) for seed in range(4) for s in range(3)]
-    clf = train_style_classifier([d for d, _ in train], [y for _, y in train], styles, PRESETS["small"],
-                                 torch.device("cpu"), progress=False)
+    clf = train_style_classifier([d for d, _ in train], [y for _, y in train], styles, PRESETS["small"], CPU,
+                                 RunFolder(tmp_path / "clf", KIND, CPU))
     acc = classifier_accuracy(clf, [d for d, _ in test], [y for _, y in test])
     assert acc >= 0.9
 
@@ -60,15 +63,14 @@ def test_classifier_learns_separable_toy_styles_and_round_trips(tmp_path):
     assert feature.shape == (PRESETS["small"].hidden,)
     assert windows.shape == (90 // PRESETS["small"].window_frames, PRESETS["small"].hidden)
 
-    save_style_classifier(tmp_path / "clf", clf)
-    again = load_style_classifier(tmp_path / "clf", torch.device("cpu"))
+    again = load_style_classifier(tmp_path / "clf", CPU)
     assert again.styles == styles
     np.testing.assert_allclose(again.embed(test[0][0])[1], feature, rtol=1e-5, atol=1e-6)
 
 
-def test_too_short_dance_is_a_user_error():
+def test_too_short_dance_is_a_user_error(tmp_path):
     config = dataclasses.replace(PRESETS["small"], steps=1)
-    clf = train_style_classifier([toy_dance(0, 0)], [0], ["a"], config, torch.device("cpu"), progress=False)
+    clf = train_style_classifier([toy_dance(0, 0)], [0], ["a"], config, CPU, RunFolder(tmp_path, KIND, CPU))
     with pytest.raises(DancesynthError, match="shorter than the style classifier's window"):
         clf.embed(toy_dance(0, 1, frames=10))
 
@@ -84,17 +86,15 @@ class Crash(BaseException):
 
 def test_interrupted_training_resumes_bit_exactly(tmp_path, monkeypatch):
     from dancesynth.core.checkpoint import load_checkpoint, load_meta
-    from dancesynth.core.runs import RunFolder
-    from stage1_pose.style_classifier import KIND, StyleClassifier
+    from stage1_pose.style_classifier import StyleClassifier
 
     dances = [toy_dance(s, seed) for seed in range(2) for s in range(3)]
     labels = [s for _ in range(2) for s in range(3)]
     config = dataclasses.replace(PRESETS["small"], steps=7)
 
     def train(out, resume=False):
-        run = RunFolder(out, KIND, torch.device("cpu"), resume=resume)
-        return train_style_classifier(dances, labels, ["a", "b", "c"], config, torch.device("cpu"), progress=False,
-                                      run=run, checkpoint_every=3)
+        return train_style_classifier(dances, labels, ["a", "b", "c"], config, CPU,
+                                      RunFolder(out, KIND, CPU, resume=resume), checkpoint_every=3)
 
     train(tmp_path / "straight")
     real_forward, calls = StyleClassifier.forward, []

@@ -12,7 +12,8 @@ torch.set_num_threads(1)
 
 from dancesynth.core.checkpoint import load_checkpoint  # noqa: E402
 from dancesynth.core.errors import DancesynthError  # noqa: E402
-from stage1_pose.train import TrainerConfig, epoch_order, rank_batches, train  # noqa: E402
+from dancesynth.core.runs import epoch_order  # noqa: E402
+from stage1_pose.train import TrainerConfig, rank_batches, train  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[2]
 TINY_DR = dict(d_model=16, heads=2, d_k=8, d_v=8, d_ff=32, layers=1, window=6, dropout=0.1, lstm_hidden=32,

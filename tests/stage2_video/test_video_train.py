@@ -1,7 +1,4 @@
 import csv
-import multiprocessing
-import os
-import signal
 
 import numpy as np
 import pytest
@@ -13,7 +10,7 @@ from dancesynth.core.draw import draw_pose
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import write_video
 from dancesynth.core.skeleton import PoseSequence
-from stage2_video.train import TrainOptions, VideoTrainer, train_video
+from stage2_video.train import TrainOptions, train_video
 
 
 def _rows(path):
@@ -64,45 +61,6 @@ def test_resume_is_exact(tiny_target, tiny_config, tmp_path):
         assert torch.equal(a[k], b[k]), k
     assert [r["step"] for r in _rows(split / "losses.csv")] == [str(s) for s in range(1, 11)]
     assert [r["step"] for r in _rows(split / "validation.csv")] == ["3", "10"]
-
-
-def _train_until_signalled(video, poses, run, overrides, signum) -> None:
-    """Child process: train, and send ``signum`` to this process in the middle of step 4."""
-    real_step, calls = VideoTrainer.train_step, []
-
-    def signalled(self, batch):
-        calls.append(1)
-        if len(calls) == 4:
-            os.kill(os.getpid(), signum)
-        return real_step(self, batch)
-
-    VideoTrainer.train_step = signalled
-    try:
-        train_video(video, run, "small", TrainOptions(epochs=2, val_frames=2, sample_every=1000,
-                                                       checkpoint_every=1000), poses=poses, device="cpu",
-                    overrides=overrides)
-    except KeyboardInterrupt:
-        os._exit(130)
-    os._exit(0)
-
-
-@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
-def test_ctrl_c_or_sigterm_stops_between_steps_saves_and_resumes_exactly(tiny_target, tiny_config, tmp_path, signum):
-    video, poses = tiny_target
-    opts = dict(epochs=2, val_frames=2, sample_every=1000, checkpoint_every=1000)
-    straight, stopped = tmp_path / "straight", tmp_path / "stopped"
-    train_video(video, straight, "small", TrainOptions(**opts), poses=poses, device="cpu", overrides=tiny_config)
-    # A fresh process, as a user's: this one may hold native libraries (OpenVINO) that other tests loaded.
-    child = multiprocessing.get_context("spawn").Process(target=_train_until_signalled,
-                                                         args=(video, poses, stopped, tiny_config, signum))
-    child.start()
-    child.join(120)
-    assert child.exitcode == 130, "the signal ended the training with KeyboardInterrupt"
-    assert load_checkpoint(stopped, "stage2")[1]["step"] == 4, "step 4 was finished, then saved"
-    assert train_video(video, stopped, "small", TrainOptions(**opts), resume=True, poses=poses,
-                       device="cpu")["step"] == 10
-    a, b = load_checkpoint(straight, "stage2")[0], load_checkpoint(stopped, "stage2")[0]
-    assert all(torch.equal(a[k], b[k]) for k in a)
 
 
 def test_bad_inputs_are_user_errors(tiny_target, tmp_path):

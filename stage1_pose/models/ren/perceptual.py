@@ -7,21 +7,22 @@ and loads it frozen (:func:`load_stgcn`) while the Ren generator trains.
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import torch
 import torch.nn.functional as F
 from torch.utils.data import DataLoader
 
-from dancesynth.core.checkpoint import POINTER, load_checkpoint, run_file_contents
+from dancesynth.core.checkpoint import POINTER, checkpoint_files, load_checkpoint, run_file_contents
 from dancesynth.core.config import config_from_dict, config_to_dict
 from dancesynth.core.device import resolve_device
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.progress import track
-from dancesynth.core.runs import RunFolder
+from dancesynth.core.runs import RunFolder, epoch_order
 from dancesynth.core.skeleton import ROOT
 from stage1_pose.data.dataset import WindowDataset, collate
 from stage1_pose.models.ren.stgcn import STGCN, STGCN_PRESETS, STGCNConfig
@@ -96,16 +97,30 @@ def _accuracy(net: STGCN, loader: DataLoader, device: torch.device) -> float:
     return right / total if total else float("nan")
 
 
+@dataclass
+class _Position:
+    """How far an ST-GCN training got: ``epoch``, ``batch`` of it, optimiser ``step`` in all, and the loss summed
+    over the epoch's batches so far (its ``metrics.csv`` row is their mean)."""
+
+    epoch: int = 0
+    batch: int = 0
+    step: int = 0
+    loss_sum: float = 0.0
+
+
 def train_stgcn(data_dir: str | os.PathLike, out_dir: str | os.PathLike, preset: str = "small",
                 epochs: int | None = None, device: str = "auto", seed: int = 0,
-                progress: bool = True, resume: bool = False) -> dict[str, float]:
+                progress: bool = True, resume: bool = False, minutes: float | None = None) -> dict[str, float]:
     """Train the ST-GCN to classify the style of pose windows of the dataset in ``data_dir`` into the run folder
     ``out_dir`` (kind ``stgcn``, :class:`~dancesynth.core.runs.RunFolder`: a checkpoint and a ``metrics.csv``
     row after every epoch, ``loss.png``). With ``resume`` the run continues exactly where its last checkpoint
-    left it, with its own preset and seed; ``epochs`` is the total (default: the preset's, or the run's).
+    left it, with its own preset and seed; ``epochs`` is the total (default: the preset's, or the run's),
+    ``minutes`` the wall-clock training time in all; Ctrl-C or SIGTERM saves, then raises
+    :class:`KeyboardInterrupt` (:meth:`~dancesynth.core.runs.RunFolder.training`). ``progress``: report the
+    dataset's preparation.
 
-    Windows are ``window_frames`` pose frames with 50 % overlap. Returns ``epochs``, ``train_accuracy`` and
-    ``val_accuracy`` (fractions in [0, 1] of windows whose style is recognised; NaN when the dataset has
+    Windows are ``window_frames`` pose frames with 50 % overlap. Returns ``epochs`` (completed), ``train_accuracy``
+    and ``val_accuracy`` (fractions in [0, 1] of windows whose style is recognised; NaN when the dataset has
     no validation clips), which the final checkpoint's metadata also holds.
     """
     if not resume and preset not in STGCN_PRESETS:
@@ -129,33 +144,48 @@ def train_stgcn(data_dir: str | os.PathLike, out_dir: str | os.PathLike, preset:
     if len(train_set) == 0:
         raise DancesynthError(f"The dataset {data_dir} has no training window of {cfg.window_frames} frames; "
                               "make longer clips with `dancesynth make-dataset --seconds`.")
-    shuffle = torch.Generator().manual_seed(seed)
-    train_loader = DataLoader(train_set, cfg.batch_size, shuffle=True, collate_fn=collate, generator=shuffle)
     eval_loaders = [DataLoader(d, cfg.batch_size, collate_fn=collate) for d in (train_set, val_set)]
 
     net = STGCN(cfg).to(dev)
     opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
     optimizers = {"adam": opt}
-    start = step = 0
+    augment = torch.Generator().manual_seed(seed)
+    at = _Position()
     if run.meta is not None:
         meta, extra = run.restore(net, optimizers)
-        start, step = meta["epoch"], meta["step"]
-        shuffle.set_state(extra["shuffle"])  # the epoch's data order and augmentation continue from here
+        with run_file_contents(checkpoint_files(run.path, meta)[1]):
+            at = _Position(int(meta["epoch"]), int(meta.get("batch", 0)), int(meta["step"]), float(extra["loss_sum"]))
+            augment.set_state(extra["augment"])
     base_meta = {"config": config_to_dict(cfg), "styles": styles, "seed": seed, "data": str(data_dir)}
-    for epoch in track(range(start, cfg.epochs), desc="train-stgcn", unit="epoch", disable=not progress):
+
+    def save() -> dict[str, Any]:
+        return run.save(net, {**base_meta, "epoch": at.epoch, "batch": at.batch, "step": at.step}, optimizers,
+                        {"augment": augment.get_state(), "loss_sum": at.loss_sum})
+
+    batches_per_epoch = math.ceil(len(train_set) / cfg.batch_size)
+    with run.training(save, minutes, cfg.epochs * batches_per_epoch, at.step, "train-stgcn") as session:
         net.train()
-        total = 0.0
-        for batch in train_loader:
-            loss = F.cross_entropy(net(_augment(batch.poses, shuffle).to(dev)), batch.style.to(dev))
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            opt.step()
-            total += loss.item()
-        step += len(train_loader)
-        run.log("metrics", {"epoch": epoch, "step": step, "loss": total / len(train_loader)})
-        run.save(net, {**base_meta, "epoch": epoch + 1, "step": step}, optimizers, {"shuffle": shuffle.get_state()})
+        while at.epoch < cfg.epochs and not session.stopped:
+            order = epoch_order(len(train_set), seed, at.epoch)
+            batches = [order[i:i + cfg.batch_size] for i in range(0, len(order), cfg.batch_size)]
+            for indices in batches[at.batch:]:
+                batch = collate([train_set[i] for i in indices])
+                loss = F.cross_entropy(net(_augment(batch.poses, augment).to(dev)), batch.style.to(dev))
+                opt.zero_grad(set_to_none=True)
+                loss.backward()
+                opt.step()
+                at.batch, at.step, at.loss_sum = at.batch + 1, at.step + 1, at.loss_sum + loss.item()
+                if session.step_done(at.step, epoch=at.epoch + 1, loss=f"{loss.item():.3f}"):
+                    break
+            if at.batch < len(batches):
+                break
+            run.log("metrics", {"epoch": at.epoch, "step": at.step, "loss": at.loss_sum / len(batches)})
+            at = _Position(at.epoch + 1, 0, at.step)
+            save()
+    if at.batch:
+        save()  # the budget ran out inside an epoch
     train_acc, val_acc = (_accuracy(net, loader, dev) for loader in eval_loaders)
     run.update_meta({"train_accuracy": train_acc, "val_accuracy": val_acc})
     run.plot("loss.png")
     run.close()
-    return {"epochs": cfg.epochs, "train_accuracy": train_acc, "val_accuracy": val_acc}
+    return {"epochs": at.epoch, "train_accuracy": train_acc, "val_accuracy": val_acc}
