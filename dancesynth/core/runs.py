@@ -329,7 +329,7 @@ class TrainingSession:
         the loop must end now: the budget is spent or a stop was asked for (in every process alike)."""
         self._run.trained_seconds = self._trained_before + time.monotonic() - self._start
         bar = self.progress
-        bar.update(min(bar.total or 0, int(self._run.trained_seconds)) - bar.n if self._seconds else 1)
         bar.set_postfix(step=step, **shown)
+        bar.update(min(bar.total or 0, int(self._run.trained_seconds)) - bar.n if self._seconds else 1)
         self.stopped = self._run.agree(self._stop.requested or self._run.trained_seconds >= self._budget_s)
         return self.stopped

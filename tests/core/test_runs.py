@@ -1,5 +1,6 @@
 import csv
 import json
+import logging
 import os
 import random
 import shutil
@@ -14,6 +15,7 @@ import torch
 from torch import nn
 
 import dancesynth.core.checkpoint as ckpt
+from dancesynth.core import progress
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.runs import RunFolder
 
@@ -264,3 +266,15 @@ def test_an_edited_pointer_naming_another_folder_deletes_no_checkpoint(straight,
         with pytest.raises(DancesynthError, match="latest.json|is missing"):
             RunFolder(run, "toy", CPU, resume=True).restore(nn.Linear(3, 1), {})
         assert (run / current / "model.safetensors").is_file()
+
+
+def test_training_progress_counts_steps_or_the_budget_with_time_left(tmp_path, monkeypatch, caplog):
+    monkeypatch.setattr(progress, "LOG_INTERVAL_S", 0.0)  # a line at every step
+    caplog.set_level(logging.INFO, logger=progress.__name__)
+    with RunFolder(tmp_path / "steps", "toy", CPU).training(lambda: None, None, 4, 0, "toy") as session:
+        assert not any(session.step_done(step, loss="0.5") for step in range(1, 3))
+    line = caplog.messages[-2]  # the last line before the closing one ("took ...")
+    assert line.startswith("toy: 2/4 step (50%)") and line.endswith(" left, step=2, loss=0.5")
+    with RunFolder(tmp_path / "budget", "toy", CPU).training(lambda: None, 1.5, 4, 0, "toy") as session:
+        session.step_done(1)
+    assert caplog.messages[-2].startswith("toy: 0/90 s (0%)")
