@@ -59,13 +59,15 @@ def test_shipped_model_dances_an_unheard_song_to_its_end_without_freezing(tmp_pa
 
 def test_shipped_model_dances_on_the_true_beats_of_a_real_recording():
     # Rock at 135 BPM, beats from its Frets-on-Fire chart; generation tracks its own beats and retimes onto them.
+    # With the DSP tracker, which keeps this excerpt's phase: the learned one slips onto the off-beats after 17 s
+    # (docs/methods/beat_tracking.md), which would test the tracker, not the retiming.
     song = Path(__file__).parents[1] / "data" / "real_song" / "escape_from_chaosland_40-65s"
     samples = load_song(song.with_suffix(".ogg"), SONG_SAMPLE_RATE)
     true = np.asarray(json.loads(song.with_suffix(".beats.json").read_text())["beats"])
     model = load_pose_model(DEFAULT_POSE_MODEL, "cpu")
     over_chance = {}
     for name, snap in (("retimed", BeatSnap()), ("no accent", BeatSnap(accent=0.0)), ("own timing", None)):
-        dance = generate_dance(model, samples, SONG_SAMPLE_RATE, seed=0, snap=snap)
+        dance = generate_dance(model, samples, SONG_SAMPLE_RATE, seed=0, snap=snap, tracker="dsp")
         for definition, detect in (("stops", velocity_minimum_beats), ("d2m", kinematic_beats)):
             moves = detect(dance.xy, dance.fps)
             hit = beats_aligned(moves, true * dance.fps, 1).mean()
