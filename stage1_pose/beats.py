@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from dancesynth.core.errors import DancesynthError
 from stage1_pose.beat_tracking.trackers import BEAT_TRACKERS, DEFAULT_BEAT_TRACKER
 from stage1_pose.features import ANALYSIS_SR, N_FFT, log_mel, num_pose_frames, onset_envelope, resample_audio
 
@@ -190,7 +191,7 @@ def song_beats(samples: np.ndarray, sr: int, tracker: str = DEFAULT_BEAT_TRACKER
     if tracker == "dsp":
         bpm, beats = track_beats(samples, sr)
         return SongBeats(beats, beats[::_DSP_BEATS_PER_BAR], bpm)
-    raise ValueError(f"unknown beat tracker {tracker!r}; choose one of {', '.join(BEAT_TRACKERS)}")
+    raise DancesynthError(f"Unknown beat tracker {tracker!r}; choose one of {', '.join(BEAT_TRACKERS)}.")
 
 
 def beat_times(samples: np.ndarray, sr: int) -> np.ndarray:

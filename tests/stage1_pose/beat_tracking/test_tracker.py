@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 import torch
 
+from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import load_song
 from stage1_pose.beat_tracking.features import FPS, N_MELS, frame_of, mel_frames, network_input
 from stage1_pose.beat_tracking.model import PRESETS, BeatTCN, load_model, save_model
@@ -96,7 +97,7 @@ def test_song_beats_runs_either_tracker():
         found = song_beats(y, sr, tracker)
         assert mir_eval.beat.f_measure(np.arange(0.5, 7.6, 0.5), found.beats) >= 0.9, tracker
         assert abs(found.bpm - 120) < 3 and np.all(np.isin(found.downbeats, found.beats))
-    with pytest.raises(ValueError, match="unknown beat tracker"):
+    with pytest.raises(DancesynthError, match="Unknown beat tracker 'oracle'"):
         song_beats(y, sr, "oracle")
 
 
