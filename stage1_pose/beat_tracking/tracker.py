@@ -15,7 +15,7 @@ import numpy as np
 import torch
 
 from stage1_pose.beat_tracking.decoder import DEFAULT_DECODER, Decoded, DecoderConfig, decode
-from stage1_pose.beat_tracking.features import FPS, mel_frames, network_input
+from stage1_pose.beat_tracking.features import FPS, frame_of, mel_frames, network_input
 from stage1_pose.beat_tracking.model import BeatTCN, load_model
 
 PRETRAINED = Path(__file__).resolve().parent.parent / "pretrained" / "beat_tracker"
@@ -34,7 +34,7 @@ def pretrained_model() -> BeatTCN:
 def activations(samples: np.ndarray, sr: int, model: BeatTCN | None = None) -> np.ndarray:
     """``[T, 3]`` float32 class probabilities (none, beat, downbeat) per frame at ``FPS`` of a mono ``[N]`` song
     at ``sr`` Hz (``model``: default the shipped one)."""
-    model = model or pretrained_model()
+    model = pretrained_model() if model is None else model
     x = torch.from_numpy(network_input(mel_frames(samples, sr)))[None]
     with torch.inference_mode():
         return torch.softmax(model(x)[0], dim=-1).numpy()
@@ -49,12 +49,12 @@ def decode_activations(probs: np.ndarray, config: DecoderConfig = DEFAULT_DECODE
     strength = probs[:, 1] + probs[:, 2]
 
     def refine(times: np.ndarray) -> np.ndarray:
-        centre = np.round(times * FPS).astype(np.int64)
+        centre = frame_of(times)
         window = np.clip(centre[:, None] + np.arange(-_REFINE, _REFINE + 1)[None, :], 0, len(probs) - 1)
         return window[np.arange(len(window)), strength[window].argmax(axis=1)] / FPS
 
     beats = refine(coarse.beats)
-    downbeats = beats[np.isin(np.round(coarse.beats * FPS), np.round(coarse.downbeats * FPS))]
+    downbeats = beats[np.isin(frame_of(coarse.beats), frame_of(coarse.downbeats))]
     return Decoded(beats, downbeats, coarse.metre, coarse.bpm)
 
 
