@@ -9,11 +9,10 @@ retrieval). Here, for every pose to render:
    position and scale (each bone's vector in torso lengths, so direction and foreshortening count, plus which face
    points are visible). Each group of parts (head and torso, each arm, each leg) takes its own nearest frame, with
    the bones that face the camera (shoulders, hips, face) in every group's cost so no part comes from a frame
-   facing the other way, the upper arms at a lower weight in the head-and-torso group's (where they leave it),
-   and frames whose hands lie on the group's parts costing more (an arm too, when its hand lies on the head or
-   torso where the pose's does not: it would carry their pixels away). A choice is kept from frame to frame while
-   it stays nearly as good (no flicker), and frames within ``exclude`` of the frame being learnt are never
-   returned (the network must learn to repair a warp, not to copy its input).
+   facing the other way, and frames whose hands lie on the group's parts costing more (an arm too, when its hand
+   lies on the head or torso where the pose's does not: it would carry their pixels away). A choice is kept from
+   frame to frame while it stays nearly as good (no flicker), and frames within ``exclude`` of the frame being
+   learnt are never returned (the network must learn to repair a warp, not to copy its input).
 2. **Parts** (:func:`part_labels`): the source frame's person mask (:mod:`stage2_video.masks`) is split into head,
    torso, upper arms, forearms, hands, thighs and shins with feet by the nearest drawn bone (a hand belongs to
    its arm even where it rests on the torso or a thigh); torso pixels hidden by an arm are filled in from around
@@ -126,10 +125,6 @@ GROUP_BONES: dict[str, tuple[int, ...]] = {
     "core": (0, 1, 2, 3, 4, 5), "right arm": (6, 7), "left arm": (8, 9), "right leg": (10, 11), "left leg": (12, 13),
 }
 GROUPS = tuple(GROUP_BONES)
-# Indices of DESCRIPTOR_BONES of the upper arms, and their weight in the head-and-torso group's cost: the torso's
-# region holds where each upper arm starts, which must point about where the pose's does (else dark wings).
-UPPER_ARM_BONES = (6, 8)
-UPPER_ARMS_IN_CORE = 0.3
 # A limb may stretch along its bone to at most this factor of the torso's scale (a foreshortened source limb).
 MAX_STRETCH = 2.5
 # Radius (torso lengths) of the disc at each shoulder that the torso's region also covers.
@@ -223,10 +218,8 @@ def group_costs(bank: tuple[np.ndarray, np.ndarray, np.ndarray], query: np.ndarr
     q_vec, q_present, q_face = descriptor(query)
     per_bone = np.where(present, ((vectors - q_vec) ** 2).sum(-1), MISSING_COST) * q_present  # [N, B]
     shared = per_bone[:, list(FACING_BONES)].sum(1) + FACE_COST * (face != q_face).sum(1)
-    costs = {g: shared + per_bone[:, [b for b in bones if b not in FACING_BONES]].sum(1)
-             for g, bones in GROUP_BONES.items()}
-    costs["core"] = costs["core"] + UPPER_ARMS_IN_CORE * per_bone[:, list(UPPER_ARM_BONES)].sum(1)
-    return costs
+    return {g: shared + per_bone[:, [b for b in bones if b not in FACING_BONES]].sum(1)
+            for g, bones in GROUP_BONES.items()}
 
 
 def _segment_mask(shape: tuple[int, int], lines: list[tuple[np.ndarray, np.ndarray]],
