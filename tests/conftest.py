@@ -62,6 +62,13 @@ def write_tiny_stage1_dataset(root: Path, splits=("train", "train", "train", "va
 
 
 @pytest.fixture(scope="session")
+def stage1_dataset_writer():
+    """:func:`write_tiny_stage1_dataset`, for tests that need a dataset of their own shape (test modules cannot
+    import it: another folder's conftest may hold the name ``conftest`` in ``sys.modules``)."""
+    return write_tiny_stage1_dataset
+
+
+@pytest.fixture(scope="session")
 def tiny_stage1_dataset(tmp_path_factory) -> Path:
     """Path of a read-only tiny dataset (5 clips of 8 s: 3 train, 1 val, 1 test)."""
     return write_tiny_stage1_dataset(tmp_path_factory.mktemp("tiny_stage1") / "data")

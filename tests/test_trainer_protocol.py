@@ -16,7 +16,6 @@ from pathlib import Path
 
 import pytest
 import torch
-from conftest import write_tiny_stage1_dataset
 
 from dancesynth.core.checkpoint import load_checkpoint, load_meta
 from dancesynth.core.runs import RunFolder, TrainingSession
@@ -63,10 +62,10 @@ TRAINERS = {
 
 
 @pytest.fixture(scope="module")
-def inputs(tiny_target, tiny_config, tmp_path_factory) -> Inputs:
+def inputs(tiny_target, tiny_config, stage1_dataset_writer, tmp_path_factory) -> Inputs:
     # Six training clips: the ST-GCN's small preset gets two batches an epoch, so a stop can fall inside one.
-    data = write_tiny_stage1_dataset(tmp_path_factory.mktemp("protocol") / "data", ("train",) * 6 + ("val", "test"),
-                                     styles=("hiphop", "salsa"), more_features=("waveform",))
+    data = stage1_dataset_writer(tmp_path_factory.mktemp("protocol") / "data", ("train",) * 6 + ("val", "test"),
+                                 styles=("hiphop", "salsa"), more_features=("waveform",))
     # pix2pixHD alone: the warped prior's person masks and plate would take most of the test's time.
     return Inputs(data, *tiny_target, {**tiny_config, "prior": False, "background": False, "blend": False})
 
