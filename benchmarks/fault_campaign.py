@@ -62,12 +62,13 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from apps.web.server import API, CONFIG_ROUTE, JOBS_ROUTE, UPLOADS_ROUTE  # noqa: E402
 from dancesynth.core.media import probe_video  # noqa: E402
 from dancesynth.core.skeleton import PoseSequence  # noqa: E402
 from stage2_video.synthetic_person import appearance_preset, write_person_video  # noqa: E402
 
-# The page's HTTP API: URL paths on the server under test, not files.
-JOBS, UPLOADS, CONFIG = "/api/jobs", "/api/uploads", "/api/config"
+# The page's HTTP API: URL paths on the server under test, as the server defines them.
+JOBS, UPLOADS, CONFIG = (API + route for route in (JOBS_ROUTE, UPLOADS_ROUTE, CONFIG_ROUTE))
 LSTM = ["--method", "lstm", "--preview-every", "0", "--device", "cpu", "--set", "hidden=8",
         "--set", "window_frames=30", "--batch-size", "4"]
 # The tiniest appearance model (32x32 px, one block, one epoch): what the server's dance jobs render with.

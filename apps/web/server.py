@@ -111,7 +111,7 @@ MODEL_FIELDS = ("name", "preset", "video", "video_path", "trained_seconds", "fin
 NUMBER = re.compile(r"\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*")
 # The JSON API's routes sit under this prefix; uploads are refused by size before their body is read.
 API = "/api"
-UPLOADS_ROUTE = "/uploads"
+CONFIG_ROUTE, UPLOADS_ROUTE, JOBS_ROUTE = "/config", "/uploads", "/jobs"
 LOOPBACK_NAMES = ("localhost", "127.0.0.1", "::1")
 # Requests of these methods only read; every other method needs the page's own Origin.
 SAFE_METHODS = ("GET", "HEAD", "OPTIONS")
@@ -769,7 +769,7 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
     def index() -> FileResponse:
         return FileResponse(STATIC / "index.html", headers=NO_CACHE)
 
-    @api.get("/config")
+    @api.get(CONFIG_ROUTE)
     def config() -> dict:
         return {"max_upload_mb": web.max_upload_mb, "max_song_minutes": web.max_song_minutes,
                 "cache": str(web.cache), "data": str(web.data), "device": web.device, "presets": offered_presets()}
@@ -798,27 +798,27 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
     def sample(name: str) -> FileResponse:
         return FileResponse(web.sample(name), headers=NO_CACHE)
 
-    @api.post("/jobs")
+    @api.post(JOBS_ROUTE)
     async def create_job(request: Request) -> dict:
         return await run_in_threadpool(web.create_job, await read_job_request(request))
 
-    @api.get("/jobs")
+    @api.get(JOBS_ROUTE)
     def jobs() -> list[dict]:
         return web.jobs.jobs()
 
-    @api.get("/jobs/{job_id}")
+    @api.get(JOBS_ROUTE + "/{job_id}")
     def job(job_id: str) -> dict:
         return web.jobs.get(job_id)
 
-    @api.get("/jobs/{job_id}/log")
+    @api.get(JOBS_ROUTE + "/{job_id}/log")
     def job_log(job_id: str) -> dict:
         return {"log": web.jobs.log(job_id)}
 
-    @api.post("/jobs/{job_id}/cancel")
+    @api.post(JOBS_ROUTE + "/{job_id}/cancel")
     def cancel(job_id: str) -> dict:
         return web.jobs.cancel(job_id)
 
-    @api.get("/jobs/{job_id}/files/{name:path}")
+    @api.get(JOBS_ROUTE + "/{job_id}/files/{name:path}")
     def job_file(job_id: str, name: str, download: bool = False) -> FileResponse:
         path = web.jobs.output(job_id, name)
         if not path.is_file():
