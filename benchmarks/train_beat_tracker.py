@@ -134,21 +134,18 @@ def build_corpus(cache: Path, corpus: Path) -> list[Path]:
                 _save(out, samples, beats, downbeats)
         files.append(out)
     benchmark_files = {p.path for p in PIECES}
+    midi_songs: list[tuple[Path, Path]] = []  # (corpus file, MIDI file) of the songs rendered as they are
     for mma in sorted((pkgs / "mma" / _MMA_EXAMPLES).glob("*/*.mma")):
         mid = mma.with_suffix(".mid")
         used = {g.lower() for g in re.findall(r"^\s*Groove\s+(\S+)", mma.read_text(errors="replace"),
                                                re.MULTILINE | re.IGNORECASE)}
         if not mid.exists() or used & test_grooves or str(mid.relative_to(pkgs / "mma")) in benchmark_files:
             continue
-        out = corpus / f"example-{mma.parent.name}-{mma.stem}.npz"
-        if not out.exists() and _simple_metre(mid):
-            with tempfile.TemporaryDirectory() as tmp:
-                _midi_item(out, mid, Path(tmp), rng)
-        files.append(out)
+        midi_songs.append((corpus / f"example-{mma.parent.name}-{mma.stem}.npz", mid))
     for mid in sorted((pkgs / "openttd-openmsx" / _OPENMSX).glob("*.mid")):
-        if str(mid.relative_to(pkgs / "openttd-openmsx")) in benchmark_files:
-            continue
-        out = corpus / f"openmsx-{mid.stem}.npz"
+        if str(mid.relative_to(pkgs / "openttd-openmsx")) not in benchmark_files:
+            midi_songs.append((corpus / f"openmsx-{mid.stem}.npz", mid))
+    for out, mid in midi_songs:
         if not out.exists() and _simple_metre(mid):
             with tempfile.TemporaryDirectory() as tmp:
                 _midi_item(out, mid, Path(tmp), rng)
