@@ -29,7 +29,7 @@ from stage1_pose.data.make_dataset import make_dataset
 from stage1_pose.generate import generate_dance, load_pose_model
 from stage1_pose.metrics import beat_align_score, beat_coverage, beat_hit_rate
 from stage1_pose.pretrained import DEFAULT_POSE_MODEL, TRAINING_DATA_SEED
-from stage2_video.cache import train_for
+from stage2_video.model_cache import train_for
 from stage2_video.presets import resolve_preset
 from stage2_video.synthetic_person import appearance_preset, write_person_video
 

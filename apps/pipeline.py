@@ -25,7 +25,7 @@ from stage1_pose.beat_snap import DEFAULT_SNAP
 from stage1_pose.beat_tracking.trackers import DEFAULT_BEAT_TRACKER
 from stage1_pose.generate import generate_dance, load_pose_model
 from stage1_pose.pretrained import DEFAULT_POSE_MODEL
-from stage2_video.cache import appearance_model_for
+from stage2_video.model_cache import appearance_model_for
 from stage2_video.presets import resolve_preset
 from stage2_video.render import check_output_options, load_appearance_model, render_video
 

@@ -389,7 +389,7 @@ def load_audio(path: Path) -> np.ndarray:
     """Mono float32 audio of a file at ``SR``."""
     import soundfile as sf
 
-    from stage1_pose.features import resample_audio
+    from stage1_pose.music_features import resample_audio
 
     y, sr = sf.read(path, dtype="float32", always_2d=True)
     return resample_audio(y.mean(axis=1), sr, SR)

@@ -17,7 +17,7 @@ import numpy as np
 from dancesynth.core import media
 from dancesynth.core.skeleton import JOINT_INDEX, NUM_JOINTS, PoseSequence
 from stage1_pose import beats as beat_tracking
-from stage1_pose import features as music_features
+from stage1_pose import music_features as music_features
 from stage2_video.synthetic_person import PersonAppearance, render_person
 
 SR = 44100

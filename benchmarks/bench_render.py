@@ -28,11 +28,11 @@ import numpy as np
 import torch
 
 from dancesynth.core.skeleton import PoseSequence
-from stage2_video.data import to_image
 from stage2_video.framing import condition, whole_canvas
 from stage2_video.models.pix2pixhd import Pix2PixHD, Pix2PixHDConfig, generator_channels, preset
 from stage2_video.render import AppearanceModel, optimize_generator, render_frames
 from stage2_video.synthetic_person import PersonAppearance, render_person
+from stage2_video.training_data import to_image
 
 
 def dancing_poses(frames: int, size: int) -> PoseSequence:

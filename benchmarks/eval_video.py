@@ -28,13 +28,13 @@ from dancesynth.core.config import config_from_dict
 from dancesynth.core.media import VideoWriter
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import JOINT_INDEX, PoseSequence
-from stage2_video.data import POSES_FILE, frames_file, split_ranges
 from stage2_video.extract import ExtractConfig, extract_frames
 from stage2_video.framing import Framing, usable_frames
 from stage2_video.models.pix2pixhd import Pix2PixHDConfig
 from stage2_video.quality import pck, psnr, ssim
 from stage2_video.render import load_appearance_model, render_frames
 from stage2_video.train import KIND
+from stage2_video.training_data import POSES_FILE, frames_file, split_ranges
 
 
 def framed(seq: PoseSequence, framings: list[Framing]) -> PoseSequence:

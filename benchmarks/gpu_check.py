@@ -56,10 +56,10 @@ from stage1_pose.data.layout import POSE_FPS
 from stage1_pose.data.styles import STYLES
 from stage1_pose.data.synth_dance import synthesize_dance
 from stage1_pose.data.synth_music import Song, synthesize_song
-from stage1_pose.features import feature_dim
 from stage1_pose.models.base import Batch
 from stage1_pose.models.ren.perceptual import CHECKPOINT_KIND as STGCN_KIND
 from stage1_pose.models.ren.stgcn import STGCN, STGCN_PRESETS
+from stage1_pose.music_features import feature_dim
 from stage1_pose.registry import build_method, make_config, method_names
 from stage1_pose.style_classifier import INPUT_DIM, StyleClassifier
 from stage1_pose.style_classifier import PRESETS as STYLE_PRESETS

@@ -49,13 +49,13 @@ from dancesynth.core.checkpoint import has_checkpoint, load_meta
 from dancesynth.core.media import read_frames
 from dancesynth.core.skeleton import NECK, ROOT, PoseSequence
 from stage2_video.composite import scene_compositor
-from stage2_video.data import POSES_FILE, load_or_extract_poses, prior_images, split_ranges
 from stage2_video.framing import FollowFraming, condition, usable_frames, video_framing
 from stage2_video.models.pix2pixhd import preset as preset_config
 from stage2_video.prior import PriorRenderer
 from stage2_video.quality import pck, psnr, ssim
 from stage2_video.render import load_appearance_model, render_layers
 from stage2_video.train import KIND, TrainOptions, train_video
+from stage2_video.training_data import POSES_FILE, load_or_extract_poses, prior_images, split_ranges
 
 CLIPS = {
     "dancer": ("musicalgestures==1.32.0", "musicalgestures-*.whl", {

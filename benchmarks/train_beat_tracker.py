@@ -84,7 +84,7 @@ def _render_options(rng: np.random.Generator) -> tuple[float, list[str]]:
 
 
 def _save(path: Path, samples: np.ndarray, beats: np.ndarray, downbeats: np.ndarray) -> None:
-    from stage1_pose.beat_tracking.features import mel_frames
+    from stage1_pose.beat_tracking.spectrogram import mel_frames
 
     end = len(samples) / 22050
     beats, downbeats = beats[beats < end], downbeats[downbeats < end]

@@ -6,7 +6,7 @@ Two trackers (:data:`BEAT_TRACKERS`): ``dsp``, onset tempograms and dynamic prog
 ``benchmarks/beat_benchmark.py`` (real music, a dev / test split).
 
 Beat times are seconds from the start of the song; on pose frames a beat is the frame nearest to its time
-(pose frame ``i`` sits at ``i / fps`` seconds, see :mod:`stage1_pose.features`).
+(pose frame ``i`` sits at ``i / fps`` seconds, see :mod:`stage1_pose.music_features`).
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import numpy as np
 
 from dancesynth.core.errors import DancesynthError
 from stage1_pose.beat_tracking.trackers import BEAT_TRACKERS, DEFAULT_BEAT_TRACKER
-from stage1_pose.features import ANALYSIS_SR, N_FFT, log_mel, num_pose_frames, onset_envelope, resample_audio
+from stage1_pose.music_features import ANALYSIS_SR, N_FFT, log_mel, num_pose_frames, onset_envelope, resample_audio
 
 # Beat tracking runs at 22050 Hz with an 11.6 ms hop. Choices measured on benchmarks/beat_benchmark.py (real
 # recordings and rendered MIDI pieces with known beats) and on the built-in synthetic songs.

@@ -45,7 +45,7 @@ from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence, resample
 from stage1_pose import metrics
 from stage1_pose.data.dataset import DanceDataset
-from stage1_pose.features import num_pose_frames
+from stage1_pose.music_features import num_pose_frames
 from stage1_pose.style_classifier import LoadedStyleClassifier
 
 MUSIC_FEATURE_KIND = "dancing2music"

@@ -23,8 +23,8 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import NormParams, PoseSequence, denormalize
 from stage1_pose.beat_snap import DEFAULT_SNAP, BeatSnap, snap_to_beats
 from stage1_pose.beats import DEFAULT_BEAT_TRACKER, SongBeats, beats_on_frames, song_beats
-from stage1_pose.features import extract_features
 from stage1_pose.models.base import Stage1Method
+from stage1_pose.music_features import extract_features
 from stage1_pose.registry import build_method, config_type
 
 KIND = "stage1"
@@ -109,7 +109,7 @@ def generate_from_features(model: LoadedPoseModel, features: np.ndarray, beats: 
 def generate_dance(model: LoadedPoseModel, samples: np.ndarray, sr: int, seed: int = 0,
                    snap: BeatSnap | None = DEFAULT_SNAP, tracker: str = DEFAULT_BEAT_TRACKER,
                    beats: SongBeats | None = None) -> PoseSequence:
-    """Mono ``samples`` at ``sr`` Hz -> a dance of :func:`stage1_pose.features.num_pose_frames` frames at the
+    """Mono ``samples`` at ``sr`` Hz -> a dance of :func:`stage1_pose.music_features.num_pose_frames` frames at the
     model's fps, in pixels of the training canvas (confidence 1); the song's beats are ``beats`` when given,
     else tracked by ``tracker`` (:func:`stage1_pose.beats.song_beats`). By default the dance is retimed onto them
     (``snap``, see :func:`generate_from_features`)."""

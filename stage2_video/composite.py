@@ -30,10 +30,10 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import read_frames
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence, body_scale, true_runs
-from stage2_video.data import KIND, POSES_FILE, cache_file, poses_digest
 from stage2_video.extract import native_logs_hidden_unless_debug
 from stage2_video.framing import MIN_CONFIDENCE, Framing
 from stage2_video.masks import Segmenter, draw_person, frame_mask, person_mask, torso_length
+from stage2_video.training_data import KIND, POSES_FILE, cache_file, poses_digest
 
 PLATE_FILE = "background.png"
 # Frames sampled for the plate's median: enough for a stable median, few enough to stay quick for long videos.

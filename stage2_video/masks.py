@@ -9,7 +9,7 @@ that frame's pose, grown by :data:`CROP_GROWTH`), and what it returns is kept on
 person or a prop next to the target never counts). Frames where it finds nobody fall back to :func:`person_mask`.
 The masks are framed like the training frames (:class:`stage2_video.framing.Framing`) and cached in the run folder
 as a uint8 ``.npy`` memory map keyed by the video's content, the framing and the poses, like the frames
-(:func:`stage2_video.data.cache_file`).
+(:func:`stage2_video.training_data.cache_file`).
 """
 
 from __future__ import annotations
@@ -23,9 +23,9 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import read_frames
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX, NECK, ROOT, PoseSequence, body_scale
-from stage2_video.data import cache_file, framed_key, poses_digest
 from stage2_video.extract import native_logs_hidden_unless_debug
 from stage2_video.framing import MIN_CONFIDENCE, Framing, VideoFraming
+from stage2_video.training_data import cache_file, framed_key, poses_digest
 
 # Person drawing, in torso lengths (Neck-MidHip): limb thickness, head disc radius, hand length past the wrist.
 LIMB_WIDTH = 0.45

@@ -38,7 +38,6 @@ from dancesynth.core.media import VideoWriter
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import BODY25_LIMBS, PoseSequence, resample
 from stage2_video.composite import Compositor, load_plate, output_size, scene_compositor
-from stage2_video.data import POSES_FILE, frame_bank, frames_file, prior_images, split_ranges, to_image, to_tensor
 from stage2_video.framing import Framing, VideoFraming, condition, framing_from_dict, label_map
 from stage2_video.masks import masks_file
 from stage2_video.models.pix2pixhd import (
@@ -54,6 +53,15 @@ from stage2_video.normalize import BodyStats, fit_normalization
 from stage2_video.prior import FrameBank, PriorRenderer, scaled_framing
 from stage2_video.retarget import retarget_onto
 from stage2_video.train import KIND
+from stage2_video.training_data import (
+    POSES_FILE,
+    frame_bank,
+    frames_file,
+    prior_images,
+    split_ranges,
+    to_image,
+    to_tensor,
+)
 from stage2_video.winograd import winograd_generator
 
 # A residual model's correction counts as the person where it changes a channel by this much ([-1, 1] scale: 13

@@ -35,17 +35,6 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path, require_file
 from dancesynth.core.runs import RunFolder, TrainingSession
 from stage2_video.composite import cache_plate
-from stage2_video.data import (
-    KIND,
-    FramePairs,
-    TargetVideo,
-    cache_frames,
-    check_poses_match,
-    frame_bank,
-    load_or_extract_poses,
-    split_ranges,
-    to_image,
-)
 from stage2_video.framing import FollowFraming, framing_from_dict, video_framing
 from stage2_video.masks import cache_masks
 from stage2_video.models.pix2pixhd import (
@@ -62,6 +51,17 @@ from stage2_video.normalize import body_stats
 from stage2_video.prior import scaled_framing
 from stage2_video.quality import psnr, ssim
 from stage2_video.retarget import target_bone_lengths
+from stage2_video.training_data import (
+    KIND,
+    FramePairs,
+    TargetVideo,
+    cache_frames,
+    check_poses_match,
+    frame_bank,
+    load_or_extract_poses,
+    split_ranges,
+    to_image,
+)
 from stage2_video.vgg import VGGLoss, build_vgg_loss
 
 METHOD = "pix2pixhd"

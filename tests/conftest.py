@@ -20,7 +20,7 @@ from dancesynth.core.draw import draw_pose  # noqa: E402
 from dancesynth.core.media import write_video  # noqa: E402
 from dancesynth.core.skeleton import PoseSequence  # noqa: E402
 from stage1_pose.data.dataset import Clip, clip_paths, create_layout, write_beats, write_manifest  # noqa: E402
-from stage1_pose.features import cache_name, feature_dim  # noqa: E402
+from stage1_pose.music_features import cache_name, feature_dim  # noqa: E402
 
 FPS, SR, SECONDS = 15.0, 8000, 8.0
 

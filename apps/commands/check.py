@@ -32,7 +32,7 @@ logger = logging.getLogger(__name__)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    # Defaults live in stage1_pose.check.CheckOptions; None here means "use it" (keeps --help fast).
+    # Defaults live in stage1_pose.quality_check.CheckOptions; None here means "use it" (keeps --help fast).
     parser.add_argument("run", metavar="RUN", help="stage-1 run folder written by train-pose")
     parser.add_argument("--data", metavar="DATASET", help="dataset folder (default: the one the run was trained on)")
     parser.add_argument("--clips", type=positive_int, help="held-out songs to check (default 3)")
@@ -47,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> None:
     from dancesynth.core.fileio import atomic_path, check_outputs
-    from stage1_pose.check import CheckOptions, check_run, report_text
+    from stage1_pose.quality_check import CheckOptions, check_run, report_text
 
     check_outputs({"JSON report": args.json}, {"pose model": args.run, "dataset": args.data})
     given = {k: getattr(args, k) for k in ("clips", "seconds", "device", "precision") if getattr(args, k) is not None}

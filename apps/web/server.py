@@ -312,7 +312,7 @@ def _read_losses(path: Path) -> dict:
 def _source_video(entry: Path) -> str | None:
     """The video a cache entry's ``source.json`` names, None when it has none; an error (ValueError, OSError)
     when the file cannot be read or names something else than a path."""
-    from stage2_video.cache import SOURCE_FILE
+    from stage2_video.model_cache import SOURCE_FILE
 
     source = entry / SOURCE_FILE
     if not source.is_file():
@@ -357,7 +357,7 @@ class WebApp:
     @functools.cached_property
     def cache(self) -> Path:
         """The appearance-model cache (its default is looked up on first use: that import loads torch)."""
-        from stage2_video.cache import default_cache_dir
+        from stage2_video.model_cache import default_cache_dir
 
         return self._cache or default_cache_dir()
 
@@ -436,7 +436,7 @@ class WebApp:
 
     def _check_video(self, path: Path) -> float:
         from dancesynth.core.media import probe_video
-        from stage2_video.cache import check_target_video
+        from stage2_video.model_cache import check_target_video
 
         check_target_video(path)
         return probe_video(path).duration
@@ -523,7 +523,7 @@ class WebApp:
         """What :meth:`models` lists of one cache entry, None when it has not trained yet; the reading's error
         when a file of it is damaged. Numbers that are not finite (a diverged training's SSIM) are None."""
         from dancesynth.core.checkpoint import load_meta
-        from stage2_video.cache import read_entry
+        from stage2_video.model_cache import read_entry
 
         entry = read_entry(folder)
         if entry is None:
@@ -662,7 +662,7 @@ class WebApp:
         return self.jobs.create("dance", f"{song['name']} danced by {target}", params, command)
 
     def _train_job(self, body: dict) -> dict:
-        from stage2_video.cache import entry_path, read_entry
+        from stage2_video.model_cache import entry_path, read_entry
 
         minutes = _number(body, "minutes", 10.0, 0.05, 24 * 60, "training budget (minutes)")
         if body.get("model"):

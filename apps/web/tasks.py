@@ -67,7 +67,7 @@ def dance_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
 
 def train_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
     """Train (or continue) the cached appearance model of a video for ``minutes`` more."""
-    from stage2_video.cache import appearance_model_for, entry_path, read_entry
+    from stage2_video.model_cache import appearance_model_for, entry_path, read_entry
 
     entry = read_entry(entry_path(params["target"], params["preset"], settings["cache"]))
     trained = entry.trained_seconds / 60 if entry is not None else 0.0

@@ -69,7 +69,7 @@ def _describe(kind: str) -> str:
 
 def or_delete_cached(run_dir: str | os.PathLike) -> str:
     """The end of a sentence telling what to do with a damaged run folder that is a cache entry of
-    `dance --target` (stage2_video.cache), which the user never gave as an --out folder."""
+    `dance --target` (stage2_video.model_cache), which the user never gave as an --out folder."""
     return f", or, if {run_dir} is a model that `dance --target` cached, delete that folder so it is trained again"
 
 

@@ -2,7 +2,7 @@
 Böck 2019, "Temporal convolutional networks for musical audio beat tracking", and Böck & Davies 2020,
 "Deconstruct, analyse, reconstruct: how to improve tempo, beat, and downbeat estimation").
 
-Input ``[B, T, 2 * n_mels]`` (:func:`stage1_pose.beat_tracking.features.network_input`), output ``[B, T, 3]``
+Input ``[B, T, 2 * n_mels]`` (:func:`stage1_pose.beat_tracking.spectrogram.network_input`), output ``[B, T, 3]``
 logits per frame for the classes no beat, beat (not the bar's first) and downbeat; ``T`` is any length, frames at
 ``features.FPS``.
 """
@@ -77,7 +77,7 @@ def save_model(model: BeatTCN, folder: Path, info: dict) -> None:
     ``info``), each replaced atomically."""
     from safetensors.torch import save_file
 
-    from stage1_pose.beat_tracking.features import FPS
+    from stage1_pose.beat_tracking.spectrogram import FPS
 
     folder.mkdir(parents=True, exist_ok=True)
     tmp = folder / ".model.part.safetensors"

@@ -15,8 +15,8 @@ import numpy as np
 import torch
 
 from stage1_pose.beat_tracking.decoder import DEFAULT_DECODER, Decoded, DecoderConfig, decode
-from stage1_pose.beat_tracking.features import FPS, frame_of, mel_frames, network_input
 from stage1_pose.beat_tracking.model import BeatTCN, load_model
+from stage1_pose.beat_tracking.spectrogram import FPS, frame_of, mel_frames, network_input
 
 PRETRAINED = Path(__file__).resolve().parent.parent / "pretrained" / "beat_tracker"
 _POOL = 2

@@ -1,7 +1,7 @@
 """Training the beat network on songs with known beats: augmented excerpts, soft frame targets, Adam, a wall-clock
 budget.
 
-A song is its ``[T, n_mels]`` dB frames (:func:`stage1_pose.beat_tracking.features.mel_frames`) with beat and
+A song is its ``[T, n_mels]`` dB frames (:func:`stage1_pose.beat_tracking.spectrogram.mel_frames`) with beat and
 downbeat times in seconds. Each excerpt is stretched in time (frames interpolated, the beats moved with them),
 shifted in pitch (mel bands), tilted in spectrum and mixed with noise, all in the mel domain, so one rendering
 serves many tempi, keys and mixes.
@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from stage1_pose.beat_tracking.features import FPS, network_input
 from stage1_pose.beat_tracking.model import PRESETS, BeatTCN, save_model
+from stage1_pose.beat_tracking.spectrogram import FPS, network_input
 
 _SAVE_MINUTES = 5.0
 

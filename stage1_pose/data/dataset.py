@@ -9,7 +9,7 @@ Layout of a dataset folder ``DIR``::
     DIR/features/<kind>/<id>.npy cached music features [T, D] (one row per pose frame), made on first use
     DIR/features/<kind>/stats.npz per-column mean and std over the train split
 
-where ``<kind>`` carries the recipe's version (:func:`stage1_pose.features.cache_name`, e.g. ``waveform-v2``).
+where ``<kind>`` carries the recipe's version (:func:`stage1_pose.music_features.cache_name`, e.g. ``waveform-v2``).
 
 Each manifest clip is ``{"id", "song", "style", "split", "audio", "poses", "beats"}`` with paths relative to
 ``DIR``. ``split`` is ``train``, ``val`` or ``test`` and is decided per ``song``, so no song is in two splits.
@@ -46,8 +46,8 @@ from stage1_pose.data.layout import (
     write_beats,
     write_manifest,
 )
-from stage1_pose.features import cache_name, check_kind, extract_features
 from stage1_pose.models.base import Batch
+from stage1_pose.music_features import cache_name, check_kind, extract_features
 
 __all__ = ["MANIFEST", "SPLITS", "Clip", "DanceDataset", "FeatureStats", "Manifest", "WindowDataset", "clip_paths",
            "collate", "create_layout", "load_feature_stats", "read_manifest", "split_songs", "write_beats",
@@ -118,7 +118,7 @@ class DanceDataset:
         return self.feature_dir(kind) / f"{clip.id}.npy"
 
     def ensure_features(self, kind: str, clips: Sequence[Clip] | None = None, progress: bool = True) -> None:
-        """Compute and cache the ``kind`` features (:func:`stage1_pose.features.extract_features`) of every clip
+        """Compute and cache the ``kind`` features (:func:`stage1_pose.music_features.extract_features`) of every clip
         (default: all) that has none yet, with a progress bar."""
         check_kind(kind)
         todo = [c for c in (self._clips if clips is None else clips) if not self.feature_path(c, kind).is_file()]

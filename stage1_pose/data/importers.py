@@ -43,7 +43,7 @@ from stage1_pose.data.layout import (
     write_beats,
     write_manifest,
 )
-from stage1_pose.features import num_pose_frames
+from stage1_pose.music_features import num_pose_frames
 
 # AIST++ genre codes (the "g.." part of a sequence name) and the dance genres they stand for.
 AIST_GENRES = {"gBR": "break", "gPO": "pop", "gLO": "lock", "gMH": "middle_hiphop", "gLH": "la_hiphop",

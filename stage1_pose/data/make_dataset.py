@@ -29,7 +29,7 @@ from stage1_pose.data.layout import (
 from stage1_pose.data.styles import STYLES
 from stage1_pose.data.synth_dance import synthesize_dance
 from stage1_pose.data.synth_music import synthesize_song
-from stage1_pose.features import num_pose_frames
+from stage1_pose.music_features import num_pose_frames
 
 # Shortest clip: a few beats of the slowest style, and enough frames for the audio features' analysis windows.
 MIN_SECONDS = 2.0

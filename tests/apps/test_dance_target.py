@@ -14,8 +14,8 @@ torch.set_num_threads(1)
 
 from apps.cli import main  # noqa: E402
 from dancesynth.core.media import probe_streams, probe_video, read_frames, write_video  # noqa: E402
-from stage2_video.cache import entry_path  # noqa: E402
 from stage2_video.composite import load_plate  # noqa: E402
+from stage2_video.model_cache import entry_path  # noqa: E402
 
 REAL_CLIP = Path(__file__).parents[1] / "data" / "real_person" / "sports2d_demo_640x360.mp4"
 SR = 22050

@@ -10,7 +10,7 @@ torch.set_num_threads(1)
 
 from apps.cli import main  # noqa: E402
 from dancesynth.core.skeleton import PoseSequence  # noqa: E402
-from stage1_pose.features import num_pose_frames  # noqa: E402
+from stage1_pose.music_features import num_pose_frames  # noqa: E402
 from stage1_pose.registry import make_config  # noqa: E402
 
 

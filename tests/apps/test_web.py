@@ -28,11 +28,11 @@ from apps.web.server import create_app  # noqa: E402
 from dancesynth.core.media import probe_streams, probe_video, write_video  # noqa: E402
 from dancesynth.core.skeleton import PoseSequence  # noqa: E402
 from stage1_pose.train import train  # noqa: E402
-from stage2_video.cache import SOURCE_FILE, entry_path  # noqa: E402
-from stage2_video.data import video_digest  # noqa: E402
+from stage2_video.model_cache import SOURCE_FILE, entry_path  # noqa: E402
 from stage2_video.presets import preset_names  # noqa: E402
 from stage2_video.synthetic_person import appearance_preset, write_person_video  # noqa: E402
 from stage2_video.train import TrainOptions, train_video  # noqa: E402
+from stage2_video.training_data import video_digest  # noqa: E402
 
 CHROMIUM = "/usr/bin/chromium"
 TINY_LSTM = dict(hidden=16, layers=1, dropout=0.0, window_frames=30, batch_size=4, epoch_windows=0)

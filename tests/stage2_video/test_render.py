@@ -9,11 +9,11 @@ from dancesynth.core.checkpoint import load_checkpoint, update_meta
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import probe_video
 from dancesynth.core.skeleton import PoseSequence
-from stage2_video.data import prior_images
 from stage2_video.framing import condition
 from stage2_video.prior import PriorRenderer
 from stage2_video.render import OpenVINOGenerator, load_appearance_model, render_frames, render_video
 from stage2_video.train import TrainOptions, train_video
+from stage2_video.training_data import prior_images
 
 
 def test_render_streams_a_video_with_right_count_and_size(tiny_run, tiny_target, make_poses, tmp_path):

@@ -19,7 +19,7 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import NUM_JOINTS, ROOT
 from stage1_pose.models.base import Batch, Stage1Method
 from stage1_pose.models.beat_clock import with_beat_phase
-from stage1_pose.models.dance_revolution.features import TEMPOGRAM_WINDOW
+from stage1_pose.models.dance_revolution.music_input import TEMPOGRAM_WINDOW
 from stage1_pose.models.kinematics import KinematicOutput, mean_raw_rows, speed_loss
 from stage1_pose.models.windowing import smooth_in_time, windowed
 

@@ -10,8 +10,8 @@ import torch
 
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import load_song
-from stage1_pose.beat_tracking.features import FPS, N_MELS, frame_of, mel_frames, network_input
 from stage1_pose.beat_tracking.model import PRESETS, BeatTCN, load_model, save_model
+from stage1_pose.beat_tracking.spectrogram import FPS, N_MELS, frame_of, mel_frames, network_input
 from stage1_pose.beat_tracking.tracker import PRETRAINED, decode_activations, track
 from stage1_pose.beat_tracking.train import Song, TrainConfig, augmented_excerpt, targets
 from stage1_pose.beats import BEAT_TRACKERS, song_beats

@@ -13,8 +13,8 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import PoseSequence
 from stage1_pose.data.dataset import DanceDataset, WindowDataset, collate
 from stage1_pose.data.layout import Clip, clip_paths, create_layout, split_songs, write_beats, write_manifest
-from stage1_pose.features import FEATURE_KINDS, cache_name, feature_dim
 from stage1_pose.models.base import Batch
+from stage1_pose.music_features import FEATURE_KINDS, cache_name, feature_dim
 
 SR = 22050
 

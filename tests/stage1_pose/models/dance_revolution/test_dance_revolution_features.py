@@ -3,7 +3,7 @@
 import mir_eval
 import numpy as np
 
-from stage1_pose.features import extract_features
+from stage1_pose.music_features import extract_features
 
 ONSET_COLUMN, BEAT_COLUMN = 20 + 20 + 12, 20 + 20 + 12 + 1  # after MFCC, delta-MFCC and chroma
 

@@ -10,7 +10,7 @@ from dancesynth.core.skeleton import NECK, ROOT, normalize  # noqa: E402
 from stage1_pose.data.styles import STYLES  # noqa: E402
 from stage1_pose.data.synth_dance import synthesize_dance  # noqa: E402
 from stage1_pose.models.base import Batch  # noqa: E402
-from stage1_pose.models.dance_revolution.features import FEATURE_DIM, TEMPOGRAM_WINDOW  # noqa: E402
+from stage1_pose.models.dance_revolution.music_input import FEATURE_DIM, TEMPOGRAM_WINDOW  # noqa: E402
 from stage1_pose.models.lstm.model import LSTMBaseline, LSTMConfig  # noqa: E402
 
 TINY = LSTMConfig(feature_dim=6, hidden=24, layers=2, dropout=0.0, lr=1e-2, window_frames=16)

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from stage1_pose.features import cache_name, extract_features, level_normalised
-from stage1_pose.models.ren.features import WAVEFORM_SR
+from stage1_pose.models.ren.music_input import WAVEFORM_SR
+from stage1_pose.music_features import cache_name, extract_features, level_normalised
 
 
 def test_waveform_rows_are_consecutive_level_normalised_audio():

@@ -5,7 +5,7 @@ import pytest
 
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import write_video
-from stage2_video import data
+from stage2_video import training_data
 from stage2_video.framing import person_framing
 from stage2_video.train import TrainOptions, train_video
 
@@ -17,8 +17,8 @@ def _grey_video(path, level: int, poses):
 
 def _prepare(video, run_dir, poses_file=None):
     """train-video's data preparation: poses (given or cached), then the framed frames."""
-    seq = data.check_poses_match(data.load_or_extract_poses(video, run_dir, poses_file), video)
-    return data.cache_frames(video, person_framing(seq, 32, 32), run_dir, seq), seq
+    seq = training_data.check_poses_match(training_data.load_or_extract_poses(video, run_dir, poses_file), video)
+    return training_data.cache_frames(video, person_framing(seq, 32, 32), run_dir, seq), seq
 
 
 @pytest.fixture
@@ -66,9 +66,9 @@ def test_a_cache_without_its_completion_key_is_rebuilt(tmp_path, two_videos):
     run = tmp_path / "run"
     run.mkdir()
     frames, seq = _prepare(a, run, poses_file)
-    path = run / data.frames_file(person_framing(seq, 32, 32))
+    path = run / training_data.frames_file(person_framing(seq, 32, 32))
     np.save(path, np.zeros_like(frames))  # as an interrupted rewrite would leave it, before its key
-    (run / (path.name + data.KEY_SUFFIX)).unlink()
+    (run / (path.name + training_data.KEY_SUFFIX)).unlink()
     assert abs(_centre(_prepare(a, run, poses_file)[0]) - 40) < 8
 
 
@@ -77,8 +77,8 @@ def test_frames_without_a_torso_are_neither_trained_on_nor_scored(tmp_path, two_
     frames, seq = _prepare(a, tmp_path, poses_file)
     kp = seq.keypoints.copy()
     kp[4:7, :, 2] = 0.0  # the estimator lost the person in frames 4-6
-    target = data.TargetVideo(frames, seq.replace(kp), person_framing(seq, 32, 32))
-    pairs = data.FramePairs(target, range(0, 12))
+    target = training_data.TargetVideo(frames, seq.replace(kp), person_framing(seq, 32, 32))
+    pairs = training_data.FramePairs(target, range(0, 12))
     assert pairs.starts == [0, 1, 2, 7, 8, 9, 10]  # no pair touches frames 4-6
     kp[:, :, 2] = 0.0
     seq.replace(kp).save(tmp_path / "lost.npz")

@@ -1,6 +1,6 @@
 """Ren et al.'s music input: the samples of each pose frame at ``WAVEFORM_SR`` Hz (1024 per frame at 15 fps), for
 the convolutional audio encoder; row ``i`` covers seconds ``[i / fps, (i + 1) / fps)``. The song is first brought to
-one level (:func:`~stage1_pose.features.level_normalised`, not in the paper): trained on the built-in songs, whose
+one level (:func:`~stage1_pose.music_features.level_normalised`, not in the paper): trained on the built-in songs, whose
 level is steady, the model danced a real recording's quiet intro and its loud rest at different speeds."""
 
 from __future__ import annotations
@@ -8,10 +8,10 @@ from __future__ import annotations
 import numpy as np
 
 from dancesynth.core.errors import DancesynthError
-from stage1_pose.features import level_normalised, num_pose_frames, resample_audio
+from stage1_pose.music_features import level_normalised, num_pose_frames, resample_audio
 
 WAVEFORM_SR = 15360
-# The recipe's version (stage1_pose.features.cache_name): 2 since the level normalisation.
+# The recipe's version (stage1_pose.music_features.cache_name): 2 since the level normalisation.
 VERSION = 2
 
 

@@ -7,7 +7,7 @@ import pytest
 
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.motion import DanceDistance, mean_speed
-from stage1_pose.check import CheckOptions, CheckResult, check_clip, report_text
+from stage1_pose.quality_check import CheckOptions, CheckResult, check_clip, report_text
 
 FPS = 15.0
 FRAMES = int(30 * FPS)

@@ -7,7 +7,7 @@ computed at ``ANALYSIS_SR`` Hz with centred STFT frames (analysis frame ``k`` si
 seconds) and the analysis frame nearest to each pose frame's time is taken (:func:`pose_rows`). At 15 fps the hop
 is 512 samples (30 analysis frames per second) and every other frame is kept, as in Dance Revolution.
 
-A feature kind's recipe lives in its method's package (``stage1_pose/models/<method>/features.py``) and is
+A feature kind's recipe lives in its method's package (``stage1_pose/models/<method>/music_input.py``) and is
 imported on first use, so this module never imports a model and the models may import these helpers.
 A recipe module defines ``feature_dim(fps) -> int`` and ``extract(samples, sr, fps, beats) -> [T, feature_dim]``,
 and ``VERSION`` (an int, default 1) once its output changes (:func:`cache_name`).
@@ -26,9 +26,9 @@ from dancesynth.core.errors import DancesynthError
 ANALYSIS_SR = 15360
 # Feature kind -> the module of its recipe.
 RECIPES: dict[str, str] = {
-    "dance_revolution": "stage1_pose.models.dance_revolution.features",
-    "dancing2music": "stage1_pose.models.dancing2music.features",
-    "waveform": "stage1_pose.models.ren.features",
+    "dance_revolution": "stage1_pose.models.dance_revolution.music_input",
+    "dancing2music": "stage1_pose.models.dancing2music.music_input",
+    "waveform": "stage1_pose.models.ren.music_input",
 }
 FEATURE_KINDS: tuple[str, ...] = tuple(RECIPES)
 # The constant-Q transform halves the signal once per octave, so its hop must be a multiple of 2**6 for 7 octaves.

@@ -24,8 +24,8 @@ from dancesynth.core.checkpoint import POINTER, has_checkpoint, load_meta, run_f
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path, require_file
 from dancesynth.core.media import probe_video
-from stage2_video.data import video_digest
 from stage2_video.train import KIND, TrainOptions, train_video
+from stage2_video.training_data import video_digest
 
 SOURCE_FILE = "source.json"
 LOCK_FILE = ".lock"

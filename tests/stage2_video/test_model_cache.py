@@ -9,9 +9,9 @@ import signal
 import pytest
 
 from dancesynth.core.errors import DancesynthError
-from stage2_video.cache import appearance_model_for, entry_path, list_entries, read_entry, train_for
-from stage2_video.data import video_digest
+from stage2_video.model_cache import appearance_model_for, entry_path, list_entries, read_entry, train_for
 from stage2_video.train import VideoTrainer
+from stage2_video.training_data import video_digest
 
 
 def _train_until_interrupted(video, poses, run) -> None:
@@ -70,8 +70,8 @@ def test_a_target_that_fails_before_its_first_checkpoint_leaves_no_entry(tiny_ta
         (entry_path(video, "small", cache) / "poses.npz").write_bytes(b"partial")
         raise DancesynthError("No person was found in the target video.")
 
-    monkeypatch.setattr("stage2_video.cache.check_target_video", lambda video: None)  # the tiny target is short
-    monkeypatch.setattr("stage2_video.cache.train_video", no_person)
+    monkeypatch.setattr("stage2_video.model_cache.check_target_video", lambda video: None)  # the tiny target is short
+    monkeypatch.setattr("stage2_video.model_cache.train_video", no_person)
     with pytest.raises(DancesynthError, match="No person"):
         appearance_model_for(video, 1.0, "small", cache, device="cpu")
     assert not entry_path(video, "small", cache).exists() and list(cache.iterdir()) == []

@@ -1,7 +1,7 @@
 """The learned tracker's input: log-mel frames at about 100 frames per second.
 
 Frame ``i`` sits at ``i / FPS`` seconds (``FPS = SR / HOP``, 100.23; centred 2048-sample windows at 22050 Hz,
-:func:`stage1_pose.features.log_mel`). Activations, targets and the decoder all count in these frames; times leave
+:func:`stage1_pose.music_features.log_mel`). Activations, targets and the decoder all count in these frames; times leave
 this package in seconds.
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from stage1_pose.features import log_mel, resample_audio
+from stage1_pose.music_features import log_mel, resample_audio
 
 SR = 22050
 HOP = 220

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from stage1_pose.beats import beat_times, beats_on_frames
-from stage1_pose.features import (
+from stage1_pose.music_features import (
     ANALYSIS_SR,
     analysis_hop,
     analysis_signal,

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from stage1_pose.features import (
+from stage1_pose.music_features import (
     ANALYSIS_SR,
     N_FFT,
     analysis_hop,

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from dancesynth.core.errors import DancesynthError
-from stage1_pose import features
-from stage1_pose.features import FEATURE_KINDS, extract_features, feature_dim, num_pose_frames
+from stage1_pose import music_features
+from stage1_pose.music_features import FEATURE_KINDS, extract_features, feature_dim, num_pose_frames
 
 
 def test_num_pose_frames():
@@ -51,16 +51,16 @@ def test_blockwise_analysis_equals_whole_song_analysis(monkeypatch):
     transforms."""
     import librosa
 
-    sr, hop = features.ANALYSIS_SR, 512
+    sr, hop = music_features.ANALYSIS_SR, 512
     rng = np.random.default_rng(0)
     t = np.arange(12 * sr) / sr
     y = (0.3 * np.sin(2 * np.pi * 443 * t) * (1 + np.sin(t)) + 0.05 * rng.standard_normal(len(t))).astype(np.float32)
-    monkeypatch.setattr(features, "_BLOCK_FRAMES", 64)  # 12 s = 361 frames: six blocks
-    mel_db = features.log_mel(y, sr, hop)
+    monkeypatch.setattr(music_features, "_BLOCK_FRAMES", 64)  # 12 s = 361 frames: six blocks
+    mel_db = music_features.log_mel(y, sr, hop)
     np.testing.assert_allclose(mel_db, librosa.power_to_db(librosa.feature.melspectrogram(y=y, sr=sr, hop_length=hop)),
                                atol=1e-3)
-    np.testing.assert_allclose(features.onset_envelope(mel_db, sr, hop),
+    np.testing.assert_allclose(music_features.onset_envelope(mel_db, sr, hop),
                                librosa.onset.onset_strength(y=y, sr=sr, hop_length=hop), atol=1e-3)
-    assert features._tuning(y, sr, 36) == pytest.approx(librosa.estimate_tuning(y=y, sr=sr, bins_per_octave=36))
+    assert music_features._tuning(y, sr, 36) == pytest.approx(librosa.estimate_tuning(y=y, sr=sr, bins_per_octave=36))
     reference = librosa.feature.chroma_cqt(y=y, sr=sr, hop_length=hop)
-    np.testing.assert_allclose(features.chroma(y, sr, hop), reference, atol=1e-3)
+    np.testing.assert_allclose(music_features.chroma(y, sr, hop), reference, atol=1e-3)
