@@ -19,6 +19,11 @@ as the papers do. It generalises Dancing2Music's warper (which stretches its dan
    mean rate is 1). The body then loses its motion in the frame into the beat, so that Dancing2Music's kinematic
    beats (motion lost per frame, which peak mid-deceleration, before the stop) land on the beat as well as the
    velocity minima.
+5. Bars (``bars``, off by default: see docs/methods/beat_tracking.md, "Meter for dancers"): dancers count in bars,
+   so, given the song's downbeats, a first pass moves the movement beats that start the largest moves (most path
+   travelled until the next movement beat) onto the downbeats, each by at most ``BAR_REACH_BEATS`` beats, before
+   the beat passes; and a fast song is danced in half time (:func:`stage1_pose.beats.dance_tempo`): the beat passes
+   and the accent use every other beat counted from the downbeats (:func:`dance_beats`).
 
 Poses are in model coordinates (:func:`dancesynth.core.skeleton.normalize`), ``[T, 25, 2]``; beats in pose
 frames (fractional: seconds x fps).
@@ -34,13 +39,17 @@ import torch
 from scipy.interpolate import PchipInterpolator
 from scipy.special import betainc
 
-from dancesynth.core.motion import velocity_minimum_beats
+from dancesynth.core.motion import joint_speeds, velocity_minimum_beats
+from stage1_pose.beats import dance_tempo
 from stage1_pose.models.kinematics import absolute_positions, bone_vectors, forward_kinematics, joint_lengths
 
 # Beta(a, b) distribution function of the accent: a = 2 starts each beat interval at rest; b = 1.2 keeps the speed up
 # until the last frame before the next beat (b = 1.5 spread the stop over two or three frames, and Dancing2Music's
 # kinematic beats fired that early).
 ACCENT_SHAPE = (2.0, 1.2)
+# The bar pass may move a large move's start by up to this many (dance) beats onto a downbeat: a move that starts
+# on the beat before or after the bar line, the usual miss, reaches it; the rate bound keeps the retiming gentle.
+BAR_REACH_BEATS = 1.0
 
 
 @dataclass(frozen=True)
@@ -53,6 +62,8 @@ class BeatSnap:
     # Retiming moves the smoothed speed's minima a little; each pass snaps what the previous one left off the beat.
     passes: int = 3
     accent: float = 0.8
+    # Largest moves onto the downbeats and fast songs in half time, where downbeats are given (see the module).
+    bars: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.accent <= 1.0:
@@ -63,25 +74,26 @@ DEFAULT_SNAP = BeatSnap()
 
 
 def snap_anchors(kinematic: np.ndarray, beats: np.ndarray, frames: int, max_shift_frames: float,
-                 max_rate: float) -> tuple[np.ndarray, np.ndarray]:
+                 max_rate: float, weights: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(source, target)`` anchor frames (float, increasing, first ``(0, 0)``, last ``(frames - 1, frames - 1)``):
     the movement beats ``kinematic`` (frames) that move, each to the music beat (fractional frames) it lands on.
 
-    The most movement beats on distinct beats, ties broken by the smallest total shift, such that every segment
-    between consecutive anchors plays at a rate (target span / source span) within ``[1 / max_rate, max_rate]``.
+    The largest total ``weights`` (one per movement beat, default 1: the most movement beats) on distinct beats,
+    ties broken by the smallest total shift, such that every segment between consecutive anchors plays at a rate
+    (target span / source span) within ``[1 / max_rate, max_rate]``.
     """
     end = float(frames - 1)
     k = np.asarray(kinematic, np.float64).ravel()
+    w = np.ones(len(k)) if weights is None else np.asarray(weights, np.float64).ravel()
     b = np.asarray(beats, np.float64).ravel()
     b = b[(b > 0) & (b < end)]
-    states = [(0.0, 0.0)]
-    for kin in k:
-        states += [(kin, beat) for beat in b[np.abs(b - kin) <= max_shift_frames]]
-    states.append((end, end))
-    src, dst = (np.array(column) for column in zip(*states))
-    # Each anchor gains 1 less its shift's share, so that all shifts together weigh less than one anchor.
-    gain = 1.0 - np.abs(src - dst) / ((max_shift_frames + 1.0) * (len(k) + 2))
-    gain[-1] = 0.0
+    states = [(0.0, 0.0, 0.0)]
+    for kin, weight in zip(k, w):
+        states += [(kin, beat, weight) for beat in b[np.abs(b - kin) <= max_shift_frames]]
+    states.append((end, end, 0.0))
+    src, dst, weight = (np.array(column) for column in zip(*states))
+    # Each anchor gains its weight less its shift's share, so that all shifts together weigh less than one anchor.
+    gain = weight - np.abs(src - dst) / ((max_shift_frames + 1.0) * (len(k) + 2))
     # The best chain's score ending at each state, and the state before it in that chain.
     score = np.full(len(src), -np.inf)
     score[0] = 0.0
@@ -105,30 +117,70 @@ def snap_anchors(kinematic: np.ndarray, beats: np.ndarray, frames: int, max_shif
     return src[chain], dst[chain]
 
 
-def snap_to_beats(poses: np.ndarray, beat_frames: np.ndarray, fps: float,
-                  settings: BeatSnap = DEFAULT_SNAP) -> np.ndarray:
+def snap_to_beats(poses: np.ndarray, beat_frames: np.ndarray, fps: float, settings: BeatSnap = DEFAULT_SNAP,
+                  downbeat_frames: np.ndarray | None = None) -> np.ndarray:
     """``[T, 25, 2]`` model-coordinate poses -> the same dance retimed so that its movement beats land on
-    ``beat_frames`` (fractional pose frames) where a gentle retiming can put them (see the module's doc).
+    ``beat_frames`` (fractional pose frames) where a gentle retiming can put them (see the module's doc); with
+    ``settings.bars`` and ``downbeat_frames`` (fractional pose frames, a subset of the beats) the largest moves
+    start on the downbeats and fast songs are danced in half time.
 
     Each pass finds the anchors on the dance retimed so far; the passes' retimings are composed and the dance is
     read once, from the original frames, so that it is interpolated (and smoothed) only once."""
     frames = len(poses)
     if frames < 4 or len(beat_frames) == 0:
         return poses
+    # Each pass: (music frames to land on, reach in frames, whether movement beats weigh by the move they start).
+    bar_pass = []
+    if settings.bars and downbeat_frames is not None and len(downbeat_frames) > 0:
+        beat_frames = dance_beats(beat_frames, downbeat_frames, fps)
+        bar_reach = BAR_REACH_BEATS * float(np.median(np.diff(beat_frames))) if len(beat_frames) > 1 else 0.0
+        bar_pass = [(downbeat_frames, bar_reach, True)]
+    passes = bar_pass + [(beat_frames, settings.max_shift * fps, False)] * settings.passes
     read_at = _reader(poses)
     t = np.arange(frames, dtype=np.float64)
     source_time, snapped = t, poses
-    for _ in range(settings.passes):
-        kinematic = velocity_minimum_beats(absolute_positions(np.asarray(snapped, np.float64)), fps)
-        src, dst = snap_anchors(kinematic, beat_frames, frames, settings.max_shift * fps, settings.max_rate)
+    for targets, reach, by_size in passes:
+        positions = absolute_positions(np.asarray(snapped, np.float64))
+        kinematic = velocity_minimum_beats(positions, fps)
+        weights = move_sizes(positions, fps, kinematic) if by_size else None
+        if weights is not None and weights.max(initial=0.0) > 0:
+            weights = weights / weights.max()
+        src, dst = snap_anchors(kinematic, targets, frames, reach, settings.max_rate, weights)
         if len(src) == 2:
-            break
+            continue
         step = np.clip(PchipInterpolator(dst, src)(t), 0.0, frames - 1.0)
         source_time = np.interp(step, t, source_time)
         snapped = read_at(source_time)
     if settings.accent > 0:
         snapped = read_at(np.interp(accent_times(frames, beat_frames, settings.accent), t, source_time))
     return snapped
+
+
+def move_sizes(xy: np.ndarray, fps: float, movement_beats: np.ndarray) -> np.ndarray:
+    """``[K]`` size of the move each movement beat (pose frame, increasing) starts: the mean joint path length of
+    ``[T, J, 2]`` positions (their unit) from it to the next movement beat, or to the end of the dance."""
+    speed = joint_speeds(xy, fps).mean(axis=1) / fps
+    travelled = np.concatenate([[0.0], np.cumsum(speed)])  # [T]: path length from frame 0 to frame t
+    starts = np.asarray(movement_beats, np.int64).ravel()
+    ends = np.append(starts[1:], len(xy) - 1)
+    return travelled[ends] - travelled[starts]
+
+
+def dance_beats(beat_frames: np.ndarray, downbeat_frames: np.ndarray, fps: float) -> np.ndarray:
+    """The beats a dancer steps on (fractional pose frames): all of ``beat_frames`` at a tempo (from their median
+    spacing) up to :data:`stage1_pose.beats.DANCE_MAX_BPM`; above it every other beat (every fourth above twice
+    that), counted from the nearest downbeat before (before the first: back from it)."""
+    beats = np.asarray(beat_frames, np.float64).ravel()
+    if len(beats) < 2:
+        return beats
+    bpm = 60.0 * fps / float(np.median(np.diff(beats)))
+    step = int(round(bpm / dance_tempo(bpm)))
+    if step == 1:
+        return beats
+    on_bar = np.unique(np.abs(beats[:, None] - np.asarray(downbeat_frames, np.float64)[None]).argmin(axis=0))
+    index = np.arange(len(beats))
+    bar_start = on_bar[np.maximum(np.searchsorted(on_bar, index, side="right") - 1, 0)]
+    return beats[(index - bar_start) % step == 0]
 
 
 def accent_times(frames: int, beat_frames: np.ndarray, accent: float) -> np.ndarray:

@@ -82,13 +82,14 @@ def load_pose_model(run_dir: str | os.PathLike, device: str = "auto", precision:
 
 
 def generate_from_features(model: LoadedPoseModel, features: np.ndarray, beats: np.ndarray,
-                           seed: int = 0, snap: BeatSnap | None = None) -> PoseSequence:
+                           seed: int = 0, snap: BeatSnap | None = None,
+                           downbeats: np.ndarray | None = None) -> PoseSequence:
     """``[T, D]`` raw (unstandardised) features of ``model.feature_kind`` and the song's ``beats`` (``[K]`` times
     in seconds) -> a T-frame dance in pixels.
 
     The same ``seed`` gives the same dance; stochastic methods give another dance for another seed. ``snap``
-    retimes the dance so that its movement beats land on ``beats`` (:mod:`stage1_pose.beat_snap`); None gives the
-    method's own output.
+    retimes the dance so that its movement beats land on ``beats`` (:mod:`stage1_pose.beat_snap`), and its largest
+    moves on ``downbeats`` (seconds) where ``snap.bars``; None gives the method's own output.
     """
     stats = model.meta["feature_stats"]
     mean, std = np.asarray(stats["mean"], np.float32), np.asarray(stats["std"], np.float32)
@@ -102,7 +103,8 @@ def generate_from_features(model: LoadedPoseModel, features: np.ndarray, beats: 
         poses = model.method.generate(x, on_beat, torch.Generator().manual_seed(int(seed)))
     dance = poses[0].float().cpu().numpy()
     if snap is not None:
-        dance = snap_to_beats(dance, np.asarray(beats, np.float64) * model.fps, model.fps, snap)
+        bars = None if downbeats is None else np.asarray(downbeats, np.float64) * model.fps
+        dance = snap_to_beats(dance, np.asarray(beats, np.float64) * model.fps, model.fps, snap, bars)
     return denormalize(dance, model.norm_params())
 
 
@@ -114,6 +116,6 @@ def generate_dance(model: LoadedPoseModel, samples: np.ndarray, sr: int, seed: i
     else tracked by ``tracker`` (:func:`stage1_pose.beats.song_beats`). By default the dance is retimed onto them
     (``snap``, see :func:`generate_from_features`)."""
     samples = np.asarray(samples, np.float32)
-    beats = (beats or song_beats(samples, sr, tracker)).beats
-    features = extract_features(samples, sr, model.feature_kind, model.fps, beats)
-    return generate_from_features(model, features, beats, seed, snap)
+    song = beats or song_beats(samples, sr, tracker)
+    features = extract_features(samples, sr, model.feature_kind, model.fps, song.beats)
+    return generate_from_features(model, features, song.beats, seed, snap, song.downbeats)

@@ -4,7 +4,7 @@ import torch
 
 from dancesynth.core.motion import beats_aligned, joint_speeds, mean_speed, velocity_minimum_beats
 from dancesynth.core.skeleton import BODY25_TREE, JOINT_INDEX, NUM_JOINTS, ROOT
-from stage1_pose.beat_snap import BeatSnap, accent_times, snap_anchors, snap_to_beats
+from stage1_pose.beat_snap import BeatSnap, accent_times, dance_beats, move_sizes, snap_anchors, snap_to_beats
 from stage1_pose.models.kinematics import absolute_positions, forward_kinematics, joint_lengths
 
 FPS = 15.0
@@ -14,15 +14,31 @@ BEAT_FRAMES = 8.0  # 112.5 BPM at 15 fps
 def swinging_arms(frames: int, stop_offset: float, period: float = BEAT_FRAMES) -> np.ndarray:
     """``[frames, 25, 2]`` model-coordinate poses: a standing body whose arms swing and stop every ``period`` frames,
     ``stop_offset`` frames after each multiple of ``period``."""
-    raw = np.zeros((frames, NUM_JOINTS, 2))
+    t = np.arange(frames)
+    return _arms_at(0.8 * np.cos(np.pi * (t - stop_offset) / period))  # angular speed 0 at t = offset + n * period
+
+
+def _arms_at(angle: np.ndarray) -> np.ndarray:
+    """``[T, 25, 2]`` model-coordinate poses of a standing body whose arms hang at ``[T]`` angles (radians)."""
+    raw = np.zeros((len(angle), NUM_JOINTS, 2))
     for _, _parent, child in BODY25_TREE:  # every bone points down, the torso and head up
         raw[:, child] = (0.0, -1.0) if child in (JOINT_INDEX["Neck"], JOINT_INDEX["Nose"]) else (0.2, 1.0)
-    t = np.arange(frames)
-    angle = 0.8 * np.cos(np.pi * (t - stop_offset) / period)  # angular speed 0 at t = offset + n * period
     for joint in ("RElbow", "RWrist", "LElbow", "LWrist"):
         raw[:, JOINT_INDEX[joint]] = np.stack([np.sin(angle), np.cos(angle)], axis=1)
     raw[:, ROOT] = 0.0
     return forward_kinematics(torch.from_numpy(raw), torch.full((NUM_JOINTS,), 0.25, dtype=torch.float64)).numpy()
+
+
+def bar_dance(frames: int, big_at: float) -> np.ndarray:
+    """Arms that stop on every beat (multiples of ``BEAT_FRAMES``) and make one large move a bar of four beats,
+    starting ``big_at`` frames after each multiple of four beats; the three small moves take it back."""
+    t = np.arange(frames, dtype=np.float64)
+    move = np.floor((t - big_at) / BEAT_FRAMES)
+    u = (t - big_at) / BEAT_FRAMES - move  # within each move: 0 at its start, 1 at its end
+    big = move % 4 == 0
+    start = np.where(big, -0.6, np.where(move % 4 == 1, 0.6, np.where(move % 4 == 2, 0.2, -0.2)))
+    eased = (1.0 - np.cos(np.pi * u)) / 2.0  # speed 0 at each stop
+    return _arms_at(start + np.where(big, 1.2, -0.4) * eased)
 
 
 def test_stops_two_frames_late_move_onto_the_beats_keeping_length_bones_and_speed():
@@ -106,3 +122,50 @@ def test_a_tighter_rate_bound_moves_fewer_beats():
     loose = snap_anchors(kinematic, beats, 300, BeatSnap().max_shift * FPS, 1.5)[0]
     tight = snap_anchors(kinematic, beats, 300, BeatSnap().max_shift * FPS, 1.05)[0]
     assert len(tight) < len(loose)
+
+
+def test_the_bar_pass_moves_each_large_move_from_the_second_beat_onto_the_downbeat():
+    frames = 250  # the last large move (233) reaches its downbeat (224) within the rate bound before the end
+    poses = bar_dance(frames, big_at=BEAT_FRAMES)  # the large moves start one beat late
+    beats = np.arange(0.0, frames, BEAT_FRAMES)
+    downbeats = beats[::4]
+
+    def large_move_starts(dance: np.ndarray) -> np.ndarray:
+        xy = absolute_positions(dance)
+        kinematic = velocity_minimum_beats(xy, FPS)
+        sizes = move_sizes(xy, FPS, kinematic)
+        return kinematic[sizes > 0.6 * sizes.max()]
+
+    plain = snap_to_beats(poses, beats, FPS, BeatSnap(), downbeats)
+    barred = snap_to_beats(poses, beats, FPS, BeatSnap(bars=True), downbeats)
+
+    assert beats_aligned(large_move_starts(plain), downbeats, 1).mean() == 0.0
+    on_bars = beats_aligned(large_move_starts(barred), downbeats, 1)
+    assert len(on_bars) >= 5 and on_bars.mean() == 1.0
+    assert beats_aligned(velocity_minimum_beats(absolute_positions(barred), FPS), beats, 1).mean() >= 0.9
+    np.testing.assert_allclose(barred[[0, -1]], poses[[0, -1]], atol=1e-9)
+
+
+def test_without_bars_the_downbeats_change_nothing():
+    poses = swinging_arms(200, stop_offset=2.0)
+    beats = np.arange(0.0, 200, BEAT_FRAMES)
+    alone = snap_to_beats(poses, beats, FPS)
+    np.testing.assert_array_equal(snap_to_beats(poses, beats, FPS, BeatSnap(), beats[::4]), alone)
+    np.testing.assert_array_equal(snap_to_beats(poses, beats, FPS, BeatSnap(bars=True)), alone)
+    kinematic = velocity_minimum_beats(absolute_positions(poses), FPS)
+    for a, b in zip(snap_anchors(kinematic, beats, 200, 3.0, 1.5),
+                    snap_anchors(kinematic, beats, 200, 3.0, 1.5, np.ones(len(kinematic)))):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_fast_songs_are_danced_in_half_time_from_the_downbeats():
+    fast = np.arange(0.0, 100, 5.0)  # 180 BPM at 15 fps
+    np.testing.assert_array_equal(dance_beats(fast, fast[1::4], FPS), fast[1::2])  # a pickup beat before the bar
+    steady = np.arange(0.0, 100, BEAT_FRAMES)  # 112.5 BPM: every beat
+    np.testing.assert_array_equal(dance_beats(steady, steady[::4], FPS), steady)
+
+
+def test_move_sizes_are_the_path_travelled_until_the_next_movement_beat():
+    xy = np.zeros((10, 1, 2))
+    xy[:, 0, 0] = [0, 1, 2, 3, 3, 3, 1, 0, 0, 0]
+    np.testing.assert_allclose(move_sizes(xy, FPS, np.array([0, 4, 8])), [3.0, 3.0, 0.0])
