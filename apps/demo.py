@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from apps.pipeline import dance
+from apps.requests import DanceRequest
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
 from dancesynth.core.media import SONG_SAMPLE_RATE, load_song, read_frames
@@ -89,13 +90,15 @@ def _last_row(path: Path) -> dict[str, str]:
     return rows[-1] if rows else {}
 
 
-def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, device: str = "auto",
+def run_demo(out: str | os.PathLike = "demo_output", minutes: float = 15.0, seed: int = 0, device: str = "auto",
              plan: DemoPlan | None = None) -> list[Path]:
-    """Run every demo step under ``out_dir`` within about ``minutes`` minutes; returns the files written."""
+    """Run every demo step under the folder ``out`` within about ``minutes`` minutes of wall-clock time, with the
+    random ``seed`` on ``device`` (``auto``, ``cpu`` or ``cuda``), at ``plan``'s sizes (None: ``DemoPlan()``);
+    returns the files written."""
     if minutes <= 1:
         raise DancesynthError("--minutes must be more than 1; the demo needs time to train the appearance model.")
     plan = plan or DemoPlan()
-    out = Path(out_dir)
+    out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     timings: dict[str, float] = {}
     clock = time.monotonic()
@@ -144,9 +147,9 @@ def run_demo(out_dir: str | os.PathLike, minutes: float = 15.0, seed: int = 0, d
 
     clip = liveliest(dataset, dataset.clips("test"))
     song = data_dir / clip.audio
-    written = dance(song, out / "dance.mp4", video_model=video_run, seed=seed, duration=plan.dance_seconds,
-                    skeleton_preview=out / "skeleton.mp4", side_by_side=out / "side_by_side.mp4",
-                    device=device).written
+    written = dance(DanceRequest(song=song, out=out / "dance.mp4", video_model=video_run, seed=seed,
+                                 duration=plan.dance_seconds, skeleton_preview=out / "skeleton.mp4",
+                                 side_by_side=out / "side_by_side.mp4", device=device)).written
     step("dance for a held-out song")
 
     written.append(_summary(out, dataset, clip, video_run, timings, seed, device, plan))

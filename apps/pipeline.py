@@ -17,12 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
+from apps.requests import DanceRequest
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import check_outputs
 from dancesynth.core.media import SONG_SAMPLE_RATE, load_song
 from dancesynth.core.skeleton import PoseSequence
 from stage1_pose.beat_snap import DEFAULT_SNAP
-from stage1_pose.beat_tracking.trackers import DEFAULT_BEAT_TRACKER
 from stage1_pose.generate import generate_dance, load_pose_model
 from stage1_pose.pretrained import DEFAULT_POSE_MODEL
 from stage2_video.model_cache import appearance_model_for
@@ -90,49 +90,34 @@ class DanceResult:
     render_seconds: float = 0.0
 
 
-def dance(song: str | os.PathLike, out: str | os.PathLike, pose_model: str | os.PathLike | None = None,
-          video_model: str | os.PathLike | None = None, target: str | os.PathLike | None = None,
-          cache: str | os.PathLike | None = None, train_minutes: float | None = None, preset: str | None = None,
-          method: str | None = None, seed: int = 0, start: float = 0.0, duration: float | None = None,
-          skeleton_preview: str | os.PathLike | None = None, side_by_side: str | os.PathLike | None = None,
-          crop: bool = False, height: int | None = None, beat_snap: bool = True, precision: str = "auto",
-          device: str = "auto", progress: bool = True, beats: str = DEFAULT_BEAT_TRACKER) -> DanceResult:
-    """Make ``out`` (mp4): the person of ``video_model`` (or of the video ``target``) dancing to ``song``.
-
-    Args:
-        pose_model: a stage-1 run (or folder of runs); None = the pose model shipped with the package.
-        video_model, target: the appearance model's run folder, or a video of the person whose model is
-            looked up in ``cache`` (default under the user's cache folder) and trained or continued until it
-            has trained ``train_minutes`` in all (default 30), at ``preset`` (default ``auto``: 256 px where the
-            hardware makes it affordable, else 128). Exactly one of the two.
-        start, duration: the song segment in seconds (duration None = to the end).
-        crop: write the model's crop around the person instead of the whole scene.
-        height: output height in pixels (aspect kept); default the target video's own.
-        skeleton_preview: optional mp4 of the dance as a skeleton (same size, with the song).
-        side_by_side: optional mp4 of skeleton | generated person (with the song).
-        beat_snap: retime the dance onto the song's beats (:mod:`stage1_pose.beat_snap`).
-        beats: the beat tracker, ``learned`` or ``dsp`` (:func:`stage1_pose.beats.song_beats`).
-        precision: stage-2 arithmetic, ``auto`` (from the hardware), ``fp32`` or ``bf16``.
-    """
+def dance(request: DanceRequest, progress: bool = True) -> DanceResult:
+    """Make ``request.out`` (mp4): the person of ``request.video_model`` (or of the video ``request.target``)
+    dancing to ``request.song``; the fields mean what :func:`dancesynth.api.dance` says. ``progress``: report the
+    frame loop's progress."""
+    song, target, video_model, device, precision = (request.song, request.target, request.video_model,
+                                                    request.device, request.precision)
     if (video_model is None) == (target is None):
         raise DancesynthError("Give the person to animate either as --target VIDEO or as --video-model RUN, "
                               "not both and not neither.")
-    if video_model is not None and (cache, train_minutes, preset) != (None, None, None):
+    if video_model is not None and (request.cache, request.train_minutes, request.preset) != (None, None, None):
         raise DancesynthError("--train-minutes, --cache and --preset apply to --target only; drop them when "
                               "using --video-model.")
-    check_output_options(crop, height)
+    check_output_options(request.crop, request.height)
+    outputs = {"dance video": request.out, "skeleton preview": request.skeleton_preview,
+               "side-by-side video": request.side_by_side}
     # Everything fast to check comes before a training that may take minutes.
-    check_outputs({"dance video": out, "skeleton preview": skeleton_preview, "side-by-side video": side_by_side},
-                  {"song": song, "target video": target, "appearance model": video_model, "pose model": pose_model})
-    segment = song_segment(load_song(song, SONG_SAMPLE_RATE), SONG_SAMPLE_RATE, start, duration)
-    pose_model_loaded = load_pose_model(find_pose_run(pose_model, method), device)
+    check_outputs(outputs, {"song": song, "target video": target, "appearance model": video_model,
+                            "pose model": request.pose_model})
+    segment = song_segment(load_song(song, SONG_SAMPLE_RATE), SONG_SAMPLE_RATE, request.start, request.duration)
+    pose_model = load_pose_model(find_pose_run(request.pose_model, request.method), device)
     if target is not None:
-        video_model = appearance_model_for(target, DEFAULT_TRAIN_MINUTES if train_minutes is None else train_minutes,
-                                           resolve_preset(preset, device, precision), cache, device, precision)
-    poses = generate_dance(pose_model_loaded, segment, SONG_SAMPLE_RATE, seed=seed,
-                           snap=DEFAULT_SNAP if beat_snap else None, tracker=beats)
+        minutes = DEFAULT_TRAIN_MINUTES if request.train_minutes is None else request.train_minutes
+        video_model = appearance_model_for(target, minutes, resolve_preset(request.preset, device, precision),
+                                           request.cache, device, precision)
+    poses = generate_dance(pose_model, segment, SONG_SAMPLE_RATE, seed=request.seed,
+                           snap=DEFAULT_SNAP if request.beat_snap else None, tracker=request.beats)
     appearance = load_appearance_model(video_model, device, precision=precision)
-    rendered = render_video(poses, appearance, out, audio=segment, audio_sr=SONG_SAMPLE_RATE, crop=crop,
-                            height=height, skeleton_preview=skeleton_preview, side_by_side=side_by_side,
-                            progress=progress)
+    rendered = render_video(poses, appearance, request.out, audio=segment, audio_sr=SONG_SAMPLE_RATE,
+                            crop=request.crop, height=request.height, skeleton_preview=request.skeleton_preview,
+                            side_by_side=request.side_by_side, progress=progress)
     return DanceResult(rendered.poses, rendered.written, Path(video_model), rendered.seconds)

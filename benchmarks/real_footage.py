@@ -45,6 +45,7 @@ import numpy as np
 from eval_video import extracted
 
 from apps.pipeline import dance
+from apps.requests import DanceRequest
 from dancesynth.core.checkpoint import has_checkpoint, load_meta
 from dancesynth.core.media import read_frames
 from dancesynth.core.skeleton import NECK, ROOT, PoseSequence
@@ -242,7 +243,8 @@ def run(args: argparse.Namespace) -> None:
                 results["plate"] = score("plate", [plate] * len(reals), reals, commanded, dancing)
             if row == "trained":
                 dance_video = Path(tmp) / "dance.mp4"
-                made = dance(SONG, dance_video, video_model=run_dir, duration=args.dance_seconds, device="cpu")
+                made = dance(DanceRequest(song=SONG, out=dance_video, video_model=run_dir, duration=args.dance_seconds,
+                                          device="cpu"))
                 dance_fps = len(made.poses) / made.render_seconds
         columns = [results[r].frames for r in ("real", "warp", "trained", "today") if r in results]
         if len(columns) > 1:

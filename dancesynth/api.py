@@ -66,13 +66,11 @@ def dance(song: PathLike, *, out: PathLike, target: PathLike | None = None, vide
         the dance at the video's fps on the target's canvas (``.poses``), the files written (``.written``) and
         the appearance model used (``.video_model``).
     """
+    arguments = dict(locals())  # exactly DanceRequest's fields (tests/apps/test_requests.py checks)
     from apps.pipeline import dance as make_dance
+    from apps.requests import DanceRequest
 
-    return make_dance(song, out, pose_model=pose_model, video_model=video_model, target=target, cache=cache,
-                      train_minutes=train_minutes, preset=preset, method=method, seed=seed, start=start,
-                      duration=duration, skeleton_preview=skeleton_preview, side_by_side=side_by_side, crop=crop,
-                      height=height, beat_snap=beat_snap, precision=precision, device=device,
-                      beats=beats)
+    return make_dance(DanceRequest(**arguments))
 
 
 def generate(song: PathLike, *, model: PathLike | None = None, out: PathLike | None = None, seed: int = 0,
@@ -121,8 +119,8 @@ def render(poses: PoseSequence | PathLike, *, model: PathLike, out: PathLike, au
            normalize: bool = True, height: int | None = None, crop: bool = False,
            skeleton_preview: PathLike | None = None, side_by_side: PathLike | None = None, optimize: bool = True,
            device: str = "auto", precision: str = "auto") -> Rendered:
-    """Render ``poses`` (a PoseSequence or a .npz pose file) as an mp4 of the person of the stage-2 run ``model``,
-    through the frame pipeline :func:`dance` uses (:func:`stage2_video.render.render_video`).
+    """Render ``poses`` (a PoseSequence or a .npz pose file) as the mp4 ``out`` of the person of the stage-2 run
+    ``model``, through the frame pipeline :func:`dance` uses (:func:`stage2_video.render.render_video`).
 
     Args:
         audio: a song to mux (any FFmpeg format), cut or padded to the video's length.
@@ -221,6 +219,8 @@ def train_pose(method: str, *, data: PathLike, out: PathLike, preset: str = "sma
         checkpoint_every: optimizer steps between checkpoints.
         preview_every: epochs between preview videos (0 = none), at most one per ``preview_gap`` minutes.
         workers: data loader worker processes.
+        seed: the seed of the initial weights, the data order and every random draw.
+        device: ``auto`` (GPU when available), ``cpu`` or ``cuda``.
 
     Returns:
         the final checkpoint's metadata (method, epoch, epochs, step, config, ...).
@@ -255,6 +255,8 @@ def train_video(video: PathLike, *, out: PathLike, preset: str = "small", overri
         poses: a pose file of ``video`` to use instead of extracting poses.
         vgg_weights: local torchvision vgg19 weights (.pth/.safetensors) for the perceptual loss (off without).
         checkpoint_every, sample_every: steps between checkpoints and between sample grids.
+        seed: the seed of the initial weights, the data order and every random draw.
+        device: ``auto`` (GPU when available), ``cpu`` or ``cuda``.
         precision: what the forward passes compute in (weights stay float32): ``auto`` (bf16 on CPUs with
             AMX/AVX-512-BF16 and on GPUs, fp16 on GPUs without bf16, else fp32), ``fp32``, ``bf16`` or ``fp16``.
 

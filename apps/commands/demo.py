@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import logging
 
-from apps.arguments import non_negative_int, output_folder, positive_float
+from apps.requests import DemoRequest
 
-NAME = "demo"
+NAME = DemoRequest.COMMAND
 HELP = "train an appearance model of a synthetic person and make them dance to a built-in song (about 15 min)"
 DESCRIPTION = """\
 Run the main job on data the project makes itself, within a time budget:
@@ -27,16 +27,11 @@ example:
 logger = logging.getLogger(__name__)
 
 
-def add_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--out", type=output_folder, default="demo_output", metavar="DIR",
-                   help="output folder (default demo_output)")
-    p.add_argument("--minutes", type=positive_float, default=15.0, help="total time budget in minutes (default 15)")
-    p.add_argument("--seed", type=non_negative_int, default=0, help="random seed (default 0)")
-    p.add_argument("--device", default="auto", help="auto (GPU when available), cpu or cuda (default auto)")
+add_arguments = DemoRequest.add_arguments
 
 
 def run(args: argparse.Namespace) -> None:
     from apps.demo import run_demo
 
-    written = run_demo(args.out, minutes=args.minutes, seed=args.seed, device=args.device)
+    written = run_demo(**DemoRequest.from_namespace(args).api_kwargs())
     logger.info("wrote " + ", ".join(map(str, written)))

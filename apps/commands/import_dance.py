@@ -6,13 +6,13 @@ import argparse
 import logging
 
 from apps.arguments import (
-    add_beats_argument,
     existing_file,
     non_negative_int,
     output_folder,
     positive_float,
     positive_int,
 )
+from apps.requests import BEATS
 
 NAME = "import-dance"
 HELP = "add a recorded dance (OpenPose JSON folder or AIST++ keypoints) and its song to a dataset folder"
@@ -58,7 +58,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="camera of a multi-view AIST++ array (default 0)")
     parser.add_argument("--id", dest="clip_id", help="clip id (default: the folder or file name)")
     parser.add_argument("--split", choices=("train", "val", "test"), help="split (default: by song)")
-    add_beats_argument(parser)
+    BEATS.add_to(parser, "beats")
 
 
 def run(args: argparse.Namespace) -> None:

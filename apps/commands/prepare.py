@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import logging
 
-from apps.arguments import add_beats_argument, output_folder, positive_float
+from apps.arguments import output_folder, positive_float
+from apps.requests import BEATS
 
 NAME = "prepare"
 HELP = "turn a folder of real dance videos (style = sub-folder name) into a stage-1 training dataset"
@@ -40,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="length of the clips each video is cut into, in seconds (default 60)")
     parser.add_argument("--default-style", default="dance",
                         help="style of the videos directly in VIDEOS_DIR (default 'dance')")
-    add_beats_argument(parser)
+    BEATS.add_to(parser, "beats")
 
 
 def run(args: argparse.Namespace) -> None:

@@ -6,7 +6,8 @@ import argparse
 import logging
 from pathlib import Path
 
-from apps.arguments import add_trainer_arguments, non_negative_int, output_folder, positive_int
+from apps.arguments import non_negative_int, output_folder, positive_int
+from apps.requests import add_trainer_arguments
 
 NAME = "train-stgcn"
 HELP = "train the ST-GCN style classifier used by the ren method's pose perceptual loss"

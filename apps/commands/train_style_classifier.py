@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 import logging
 
-from apps.arguments import add_trainer_arguments, non_negative_int, output_folder, positive_int
+from apps.arguments import non_negative_int, output_folder, positive_int
+from apps.requests import add_trainer_arguments
 
 NAME = "train-style-classifier"
 HELP = "train the dance style classifier used by `dancesynth evaluate` (FID features, ACC)"

@@ -63,6 +63,7 @@ from fastapi.staticfiles import StaticFiles
 from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException
 
+from apps.requests import DanceRequest, DemoRequest, ExtractPosesRequest, TrainVideoRequest, shown
 from apps.web.jobs import DataFolderLock, JobStore
 from apps.web.uploads import (
     FORM_BYTES,
@@ -107,8 +108,6 @@ LOSS_ROWS = 500  # the page's loss plot needs no more
 # What GET /api/models tells of each cached model.
 MODEL_FIELDS = ("name", "preset", "video", "video_path", "trained_seconds", "finished", "ssim", "psnr", "step", "size",
                 "damaged")
-# A number as JSON or the page's inputs write it: no underscores, hex or words (Python's float reads "1_0" as 10).
-NUMBER = re.compile(r"\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*")
 # The JSON API's routes sit under this prefix; uploads are refused by size before their body is read.
 API = "/api"
 CONFIG_ROUTE, UPLOADS_ROUTE, JOBS_ROUTE = "/config", "/uploads", "/jobs"
@@ -204,28 +203,6 @@ def _no_error_paths(data: Path):
         raise DancesynthError(user_message(str(e), data)) from e
 
 
-def _shown(value: object) -> str:
-    """``repr(value)``, cut to a length a sentence can hold."""
-    text = repr(value)
-    return text if len(text) <= 40 else f"{text[:37]}..."
-
-
-def _number(body: dict, key: str, default: float | None, low: float, high: float, what: str,
-            integer: bool = False) -> float | None:
-    """The number ``body[key]`` (a JSON number, or a decimal in a string as the page's inputs send it; absent,
-    null or "": ``default``), checked to lie in ``[low, high]`` (and to be whole with ``integer``)."""
-    value = body.get(key, default)
-    if value is None or value == "":
-        return default
-    number = (float(value) if isinstance(value, (int, float)) and not isinstance(value, bool)
-              else float(value) if isinstance(value, str) and NUMBER.fullmatch(value) else None)
-    if number is None or (integer and not number.is_integer()):
-        raise DancesynthError(f"The {what} must be a {'whole ' if integer else ''}number, got {_shown(value)}.")
-    if not low <= number <= high:
-        raise DancesynthError(f"The {what} must be between {low:g} and {high:g}, got {_shown(value)}.")
-    return int(number) if integer else number
-
-
 def offered_presets() -> list[dict]:
     """The appearance-model presets the page's menu offers, ``auto`` first: ``{"name", "label"}`` each."""
     return [{"name": name, "label": f"{name} ({AUTO_MEANS if name == AUTO else PRESETS[name]})"}
@@ -234,12 +211,13 @@ def offered_presets() -> list[dict]:
 
 def _check_types(body: dict) -> None:
     """Refuse a job request whose text fields (:data:`TEXT_FIELDS`) hold anything but text (or null) of at most
-    :data:`TEXT_CHARS` characters; its numbers are checked as they are read (:func:`_number`)."""
+    :data:`TEXT_CHARS` characters; its numbers are checked as they are read
+    (:meth:`apps.requests.Request.from_form`)."""
     for key, what in TEXT_FIELDS.items():
         value = body.get(key)
         if value is not None and (not isinstance(value, str) or len(value) > TEXT_CHARS):
             raise DancesynthError(f"The {what} of a job request must be a name of at most {TEXT_CHARS} characters, "
-                                  f"got {_shown(value)}; reload the page and try again.")
+                                  f"got {shown(value)}; reload the page and try again.")
 
 
 def _json_depth(text: str) -> int:
@@ -287,7 +265,7 @@ def _finite(value: object, what: str) -> float | None:
     if value is None:
         return None
     if not isinstance(value, (int, float)) or isinstance(value, bool):
-        raise ValueError(f"its {what} is {_shown(value)}, not a number")
+        raise ValueError(f"its {what} is {shown(value)}, not a number")
     return value if math.isfinite(value) else None
 
 
@@ -319,7 +297,7 @@ def _source_video(entry: Path) -> str | None:
         return None
     meta = json.loads(source.read_text())
     if not isinstance(meta, dict) or not isinstance(meta.get("video", ""), str):
-        raise ValueError(f"{SOURCE_FILE} holds {_shown(meta)}, not the path of a video")
+        raise ValueError(f"{SOURCE_FILE} holds {shown(meta)}, not the path of a video")
     return meta.get("video")
 
 
@@ -386,7 +364,7 @@ class WebApp:
         """Check the received upload is what its ``kind`` says and write its ``upload.json``; its metadata."""
         kind, name = form.fields.get("kind"), display_name(form.filename)
         if kind not in ("song", "video"):
-            raise DancesynthError(f"Unknown upload kind {_shown(kind)}; choose song or video.")
+            raise DancesynthError(f"Unknown upload kind {shown(kind)}; choose song or video.")
         if form.size == 0:
             raise DancesynthError(f"{name} is empty (0 bytes); upload a complete file.")
         try:
@@ -594,18 +572,14 @@ class WebApp:
         return samples[-1]
 
     # --- jobs --------------------------------------------------------------------------------------------
-    def _device_flag(self) -> list[str]:
-        return [] if self.device == "auto" else ["--device", self.device]
-
-    def _demo_command(self, minutes: float) -> str:
+    def _demo_command(self, request: DemoRequest) -> str:
         """The command running what a demo job runs: `dancesynth demo`, or with a plan other than the default
         (which `dancesynth demo` has no options for) the Python call the job makes."""
-        folder = str(self.data / "demo")
         if self.demo is None or self.demo == type(self.demo)():  # not DemoPlan(): apps.demo imports torch
-            return shlex.join(["dancesynth", "demo", "--out", folder, "--minutes", f"{minutes:g}",
-                               *self._device_flag()])
-        call = f"run_demo({folder!r}, minutes={minutes!r}, device={self.device!r}, plan={self.demo!r})"
-        return shlex.join(["python", "-c", f"from apps.demo import DemoPlan, run_demo; {call}"])
+            return shlex.join(request.to_command())
+        arguments = "".join(f"{name}={value!r}, " for name, value in request.api_kwargs().items())
+        return shlex.join(["python", "-c", f"from apps.demo import DemoPlan, run_demo; "
+                                           f"run_demo({arguments}plan={self.demo!r})"])
 
     def create_job(self, body: dict) -> dict:
         """Check a job request (one sentence for what is wrong) and queue it."""
@@ -614,7 +588,7 @@ class WebApp:
         fields = JOB_FIELDS.get(kind, ())
         unknown = next((key for key in body if fields and key not in fields), None)
         if unknown is not None:
-            raise DancesynthError(f"Unknown field {_shown(unknown)} in a {kind} job request; send only its fields "
+            raise DancesynthError(f"Unknown field {shown(unknown)} in a {kind} job request; send only its fields "
                                   f"({', '.join(fields)}), as the page does.")
         with _no_error_paths(self.data), self._uploads_lock:
             if kind == "dance":
@@ -622,49 +596,39 @@ class WebApp:
             if kind in ("train", "preview"):
                 return self._train_job(body) if kind == "train" else self._preview_job(body)
             if kind == "demo":
-                minutes = _number(body, "minutes", 15.0, 1.01, 24 * 60, "demo's time budget (minutes)")
-                return self.jobs.create("demo", f"demo, {minutes:g} min", {"minutes": minutes},
-                                        self._demo_command(minutes))
-        raise DancesynthError(f"Unknown job kind {_shown(kind)}; choose dance, train, preview or demo.")
+                request = DemoRequest.from_form(body, out=str(self.data / "demo"), device=self.device)
+                return self.jobs.create("demo", f"demo, {request.minutes:g} min", request.to_dict(),
+                                        self._demo_command(request))
+        raise DancesynthError(f"Unknown job kind {shown(kind)}; choose dance, train, preview or demo.")
 
     def _dance_job(self, body: dict) -> dict:
         pose = self.pose_model_path(body["pose_model"]) if body.get("pose_model") else None
         song = self.song(body.get("song") or "")
-        start = _number(body, "start", 0.0, 0.0, song["duration"], "segment start (seconds)")
-        duration = _number(body, "duration", None, 1.0, 24 * 3600, "segment duration (seconds)")
-        seed = int(_number(body, "seed", 0, 0, 2**31 - 1, "seed", integer=True))
-        if start > song["duration"] - 1.0:
-            raise DancesynthError(f"The segment start {start:g} s is too close to the end of the song, which lasts "
-                                  f"{song['duration']:.1f} s; choose a start at least 1 s before its end.")
-        params = {"song_path": song["path"], "start": start, "duration": duration, "seed": seed,
-                  "pose_model": pose and str(pose)}
-        segment = ["--start", f"{start:g}", *(["--duration", f"{duration:g}"] if duration else []),
-                   "--seed", str(seed), *(["--pose-model", str(pose)] if pose else [])]
         if body.get("model"):
             model = self.model(body["model"])
-            path = self.cache / model["name"]
-            params["video_model"] = str(path)
-            who = ["--video-model", str(path)]
+            # The training budget goes with a video only; a model's job ignores it, as the page does not send it.
+            person = {"video_model": str(self.cache / model["name"]), "train_minutes": None}
             target = f"{model['video']} ({model['preset']})"
         else:
             if not body.get("video"):
                 raise DancesynthError("Choose the person: a trained appearance model or an uploaded video.")
             video = self.upload(body["video"], "video")
-            minutes = _number(body, "minutes", 30.0, 0.0, 24 * 60, "training budget (minutes)")
-            preset = resolve_preset(body.get("preset", AUTO), self.device)
-            params.update(target=video["path"], minutes=minutes, preset=preset)
-            who = ["--target", video["path"], "--train-minutes", f"{minutes:g}", "--preset", preset,
-                   "--cache", str(self.cache)]
+            person = {"target": video["path"], "preset": resolve_preset(body.get("preset", AUTO), self.device),
+                      "cache": str(self.cache)}
             target = video["name"]
-        command = shlex.join(["dancesynth", "dance", song["path"], *who, *segment, "--out", "dance.mp4",
-                              "--skeleton-preview", "skeleton.mp4", "--side-by-side", "side_by_side.mp4",
-                              *self._device_flag()])
-        return self.jobs.create("dance", f"{song['name']} danced by {target}", params, command)
+        # The job's outputs are named relative to its folder (tasks.dance_job puts them there).
+        request = DanceRequest.from_form(body, song=song["path"], pose_model=pose and str(pose), out="dance.mp4",
+                                         skeleton_preview="skeleton.mp4", side_by_side="side_by_side.mp4",
+                                         device=self.device, **person)
+        if request.start > song["duration"] - 1.0:
+            raise DancesynthError(f"The segment start {request.start:g} s is too close to the end of the song, which "
+                                  f"lasts {song['duration']:.1f} s; choose a start at least 1 s before its end.")
+        return self.jobs.create("dance", f"{song['name']} danced by {target}", request.to_dict(),
+                                shlex.join(request.to_command()))
 
     def _train_job(self, body: dict) -> dict:
         from stage2_video.model_cache import entry_path, read_entry
 
-        minutes = _number(body, "minutes", 10.0, 0.05, 24 * 60, "training budget (minutes)")
         if body.get("model"):
             model = self.model(body["model"])
             video = Path(model["video_path"])
@@ -679,22 +643,21 @@ class WebApp:
             video, name = Path(upload["path"]), upload["name"]
             preset = resolve_preset(body.get("preset", AUTO), self.device)
         entry = entry_path(video, preset, self.cache)
+        # The page asks for minutes more; train-video's --minutes counts the run's time in all.
+        request = TrainVideoRequest.from_form(body, video=str(video), out=str(entry), preset=preset,
+                                              device=self.device)
         trained = read_entry(entry)
-        # train-video's --minutes counts the run's time in all: the minutes asked for come on top of what it has.
-        in_all = minutes + (trained.trained_seconds / 60 if trained is not None else 0.0)
-        command = shlex.join(["dancesynth", "train-video", str(video), "--out", str(entry), "--preset", preset,
-                              "--minutes", f"{in_all:g}", *(["--resume"] if trained is not None else []),
-                              *self._device_flag()])
-        return self.jobs.create("train", f"appearance model of {name}, {minutes:g} min more",
-                                {"target": str(video), "minutes": minutes, "preset": preset, "entry": entry.name},
-                                command)
+        in_all = request.minutes + (trained.trained_seconds / 60 if trained is not None else 0.0)
+        command = dataclasses.replace(request, minutes=in_all, resume=trained is not None).to_command()
+        return self.jobs.create("train", f"appearance model of {name}, {request.minutes:g} min more",
+                                {"target": str(video), "minutes": request.minutes, "preset": preset,
+                                 "entry": entry.name}, shlex.join(command))
 
     def _preview_job(self, body: dict) -> dict:
         upload = self.upload(body.get("video") or "", "video")
-        command = shlex.join(["dancesynth", "extract-poses", upload["path"], "--out", "poses.npz", "--preview",
-                              "preview.mp4"])
+        request = ExtractPosesRequest(video=upload["path"], out="poses.npz", preview="preview.mp4")
         return self.jobs.create("preview", f"who is tracked in {upload['name']}", {"target": upload["path"]},
-                                command)
+                                shlex.join(request.to_command()))
 
 
 def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_upload_mb: float = 500.0,
@@ -747,7 +710,7 @@ def create_app(data: Path, cache: Path | None = None, device: str = "auto", max_
     @app.exception_handler(Exception)
     async def server_error(request: Request, e: Exception) -> JSONResponse:
         # The server's console has the traceback (uvicorn logs the exception after this answer).
-        return JSONResponse({"error": f"The server failed on this request ({type(e).__name__}: {_shown(str(e))}); "
+        return JSONResponse({"error": f"The server failed on this request ({type(e).__name__}: {shown(str(e))}); "
                                       "its console has the details."}, status_code=500)
 
     @app.middleware("http")

@@ -9,6 +9,7 @@ worker started) stops itself the same way. Heavy modules are imported in the wor
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import json
 import logging
@@ -36,7 +37,6 @@ PROGRESS_INTERVAL_S = 0.5
 PREVIEW_SECONDS = 5.0
 # Time an orphaned worker has to clean up as on Ctrl-C before it is ended outright.
 ORPHAN_GRACE_S = 5.0
-DEMO_FOLDER = "demo"
 # Files of the demo's folder the page shows (summary.md links to them).
 DEMO_FILES = ("summary.md", "frames.png", "dance.mp4", "skeleton.mp4", "side_by_side.mp4", "target/target.mp4",
               "runs/video/losses.png")
@@ -47,19 +47,17 @@ def _relative(path: Path, data: Path) -> str:
 
 
 def dance_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
-    """The dance, its skeleton and side-by-side videos, by :func:`apps.pipeline.dance`."""
+    """The dance, its skeleton and side-by-side videos, by :func:`apps.pipeline.dance`; ``params`` is the job's
+    :class:`~apps.requests.DanceRequest`, its outputs named relative to the job's folder ``out``."""
     from apps.pipeline import dance
+    from apps.requests import DanceRequest
 
     out.mkdir(exist_ok=True)
-    files = {"dance": out / "dance.mp4", "skeleton": out / "skeleton.mp4", "side_by_side": out / "side_by_side.mp4"}
-    # The cache and training settings go with a target video only (a cached model is given as its run folder).
-    training = ({"cache": settings["cache"], "train_minutes": params.get("minutes"), "preset": params.get("preset")}
-                if params.get("target") else {})
-    result = dance(params["song_path"], files["dance"], pose_model=params.get("pose_model"),
-                   video_model=params.get("video_model"),
-                   target=params.get("target"), **training, seed=params["seed"], start=params["start"],
-                   duration=params.get("duration"), skeleton_preview=files["skeleton"],
-                   side_by_side=files["side_by_side"], device=settings["device"])
+    request = DanceRequest(**params)
+    files = {"dance": out / request.out, "skeleton": out / request.skeleton_preview,
+             "side_by_side": out / request.side_by_side}
+    result = dance(dataclasses.replace(request, out=files["dance"], skeleton_preview=files["skeleton"],
+                                       side_by_side=files["side_by_side"]))
     data = Path(settings["data"])
     return ({name: _relative(path, data) for name, path in files.items()},
             {"video_model": str(result.video_model), "frames": len(result.poses), "fps": result.poses.fps})
@@ -105,14 +103,16 @@ def preview_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
 
 
 def demo_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
-    """:func:`apps.demo.run_demo` into ``DATA/demo`` (kept when cancelled: the demo continues where it stopped), at
-    the sizes of the server's ``DemoPlan`` (``settings["demo"]``, its fields; None: the default plan)."""
+    """:func:`apps.demo.run_demo` of the job's :class:`~apps.requests.DemoRequest` (``params``; its folder is kept
+    when cancelled: the demo continues where it stopped), at the sizes of the server's ``DemoPlan``
+    (``settings["demo"]``, its fields; None: the default plan)."""
     from apps.demo import DemoPlan, run_demo
+    from apps.requests import DemoRequest
 
-    data = Path(settings["data"])
-    folder = data / DEMO_FOLDER
+    request = DemoRequest(**params)
     plan = DemoPlan(**settings["demo"]) if settings.get("demo") else None
-    run_demo(folder, minutes=params["minutes"], seed=params.get("seed", 0), device=settings["device"], plan=plan)
+    run_demo(**request.api_kwargs(), plan=plan)
+    folder, data = Path(request.out), Path(settings["data"])
     return {name: _relative(folder / name, data) for name in DEMO_FILES if (folder / name).is_file()}, {}
 
 

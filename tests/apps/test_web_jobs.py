@@ -96,8 +96,8 @@ def test_a_demo_jobs_command_makes_the_call_the_job_makes(tmp_path, monkeypatch)
     sizes (which `dancesynth demo` has no options for) the Python call; run, it calls run_demo as the job does."""
     calls = []
 
-    def run_demo(out_dir, minutes=15.0, seed=0, device="auto", plan=None):
-        calls.append((str(out_dir), minutes, seed, device, plan or DemoPlan()))
+    def run_demo(out, minutes=15.0, seed=0, device="auto", plan=None):
+        calls.append((str(out), minutes, seed, device, plan or DemoPlan()))
         return []
 
     monkeypatch.setattr(apps.demo, "run_demo", run_demo)
