@@ -26,8 +26,9 @@ seconds of every Frets-on-Fire recording (the packages' full ``song.ogg``) that 
 
 Each model gets two rows by default: ``raw``, the method's own timing (what ``dancesynth evaluate`` scores), and
 ``snap``, the dance retimed onto the tracked beats (:mod:`stage1_pose.beat_snap`), as ``dancesynth dance`` and
-``generate`` make it; ``bars`` retimes with ``BeatSnap(bars=True)`` (largest moves onto the tracked downbeats, fast
-songs in half time). ``--snap`` names the rows wanted (``--snap raw snap bars``). ``jerk`` is the mean |d³x/dt³|
+``generate`` make it (the largest moves on the tracked downbeats too); ``beats`` retimes onto the beats alone
+(``BeatSnap(bars=False)``), ``half`` dances fast songs in half time as well (``BeatSnap(half_time=True)``).
+``--snap`` names the rows wanted (``--snap raw beats snap half``). ``jerk`` is the mean |d³x/dt³|
 of the joints (px/s³), to see what the retiming costs in smoothness.
 """
 
@@ -61,7 +62,7 @@ DEFINITIONS = {"vmin": velocity_minimum_beats, "d2m": kinematic_beats}
 # Speed windows at the start and end of the dance, seconds.
 SPEED_WINDOW = 10.0
 GOAL_MARGIN = 0.10
-TIMINGS = {"raw": None, "snap": DEFAULT_SNAP, "bars": BeatSnap(bars=True)}
+TIMINGS = {"raw": None, "beats": BeatSnap(bars=False), "snap": DEFAULT_SNAP, "half": BeatSnap(half_time=True)}
 # Big moves: the movement beats starting this share of the dance's moves, the largest (one in four: a move a bar in
 # 4/4 when the moves go by beats).
 BIG_SHARE = 0.25
@@ -160,8 +161,8 @@ def main() -> None:
     parser.add_argument("--data", type=Path, help="the built-in dataset the models trained on: speeds vs its dances")
     parser.add_argument("--long", type=float, metavar="S", help="also dance S seconds of the long recordings")
     parser.add_argument("--snap", nargs="+", choices=TIMINGS, default=["raw", "snap"],
-                        help="rows for the methods' own timing (raw), the retimed dances (snap), the bar-aware "
-                             "retiming (bars)")
+                        help="rows for the methods' own timing (raw), the retiming onto beats alone (beats), "
+                             "the product's retiming (snap), with half time on fast songs (half)")
     parser.add_argument("--split", choices=("dev", "test", "all"), default="all",
                         help="the beat benchmark's half to dance (beat_benchmark.SPLIT)")
     args = parser.parse_args()

@@ -19,11 +19,12 @@ as the papers do. It generalises Dancing2Music's warper (which stretches its dan
    mean rate is 1). The body then loses its motion in the frame into the beat, so that Dancing2Music's kinematic
    beats (motion lost per frame, which peak mid-deceleration, before the stop) land on the beat as well as the
    velocity minima.
-5. Bars (``bars``, off by default: see docs/methods/beat_tracking.md, "Meter for dancers"): dancers count in bars,
-   so, given the song's downbeats, a first pass moves the movement beats that start the largest moves (most path
+5. Bars (``bars``; measured in docs/methods/beat_tracking.md, "Meter for dancers"): dancers count in bars, so,
+   given the song's downbeats, a first pass moves the movement beats that start the largest moves (most path
    travelled until the next movement beat) onto the downbeats, each by at most ``BAR_REACH_BEATS`` beats, before
-   the beat passes; and a fast song is danced in half time (:func:`stage1_pose.beats.dance_tempo`): the beat passes
-   and the accent use every other beat counted from the downbeats (:func:`dance_beats`).
+   the beat passes. ``half_time`` (off: it costs beat hits) dances a fast song in half time
+   (:func:`stage1_pose.beats.dance_tempo`): the beat passes and the accent use every other beat counted from the
+   downbeats (:func:`dance_beats`).
 
 Poses are in model coordinates (:func:`dancesynth.core.skeleton.normalize`), ``[T, 25, 2]``; beats in pose
 frames (fractional: seconds x fps).
@@ -62,8 +63,9 @@ class BeatSnap:
     # Retiming moves the smoothed speed's minima a little; each pass snaps what the previous one left off the beat.
     passes: int = 3
     accent: float = 0.8
-    # Largest moves onto the downbeats and fast songs in half time, where downbeats are given (see the module).
-    bars: bool = False
+    # Where downbeats are given: the largest moves onto them; fast songs in half time (see the module).
+    bars: bool = True
+    half_time: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.accent <= 1.0:
@@ -121,8 +123,8 @@ def snap_to_beats(poses: np.ndarray, beat_frames: np.ndarray, fps: float, settin
                   downbeat_frames: np.ndarray | None = None) -> np.ndarray:
     """``[T, 25, 2]`` model-coordinate poses -> the same dance retimed so that its movement beats land on
     ``beat_frames`` (fractional pose frames) where a gentle retiming can put them (see the module's doc); with
-    ``settings.bars`` and ``downbeat_frames`` (fractional pose frames, a subset of the beats) the largest moves
-    start on the downbeats and fast songs are danced in half time.
+    ``downbeat_frames`` (fractional pose frames, a subset of the beats) the largest moves start on the downbeats
+    (``settings.bars``) and fast songs are danced in half time (``settings.half_time``).
 
     Each pass finds the anchors on the dance retimed so far; the passes' retimings are composed and the dance is
     read once, from the original frames, so that it is interpolated (and smoothed) only once."""
@@ -131,10 +133,11 @@ def snap_to_beats(poses: np.ndarray, beat_frames: np.ndarray, fps: float, settin
         return poses
     # Each pass: (music frames to land on, reach in frames, whether movement beats weigh by the move they start).
     bar_pass = []
-    if settings.bars and downbeat_frames is not None and len(downbeat_frames) > 0:
+    has_bars = downbeat_frames is not None and len(downbeat_frames) > 0
+    if settings.half_time and has_bars:
         beat_frames = dance_beats(beat_frames, downbeat_frames, fps)
-        bar_reach = BAR_REACH_BEATS * float(np.median(np.diff(beat_frames))) if len(beat_frames) > 1 else 0.0
-        bar_pass = [(downbeat_frames, bar_reach, True)]
+    if settings.bars and has_bars and len(beat_frames) > 1:
+        bar_pass = [(downbeat_frames, BAR_REACH_BEATS * float(np.median(np.diff(beat_frames))), True)]
     passes = bar_pass + [(beat_frames, settings.max_shift * fps, False)] * settings.passes
     read_at = _reader(poses)
     t = np.arange(frames, dtype=np.float64)
@@ -142,9 +145,10 @@ def snap_to_beats(poses: np.ndarray, beat_frames: np.ndarray, fps: float, settin
     for targets, reach, by_size in passes:
         positions = absolute_positions(np.asarray(snapped, np.float64))
         kinematic = velocity_minimum_beats(positions, fps)
-        weights = move_sizes(positions, fps, kinematic) if by_size else None
-        if weights is not None and weights.max(initial=0.0) > 0:
-            weights = weights / weights.max()
+        weights = None
+        if by_size:  # the largest move weighs as much as one anchor of the beat passes
+            sizes = move_sizes(positions, fps, kinematic)
+            weights = sizes / max(float(sizes.max(initial=0.0)), 1e-12)
         src, dst = snap_anchors(kinematic, targets, frames, reach, settings.max_rate, weights)
         if len(src) == 2:
             continue

@@ -56,8 +56,8 @@ REAL, RANDOM_REAL, FROZEN = "real dances", "random real dance", "mean pose (froz
 class HeldOutSong:
     """A held-out song cut to the evaluated length, with its real dance and beats.
 
-    ``samples`` mono ``[N]`` at ``sr`` Hz; ``beats`` in seconds (only those inside the cut); ``real`` the
-    dance performed to it (``num_pose_frames`` frames); ``music`` a ``[E]`` summary music embedding.
+    ``samples`` mono ``[N]`` at ``sr`` Hz; ``beats`` and ``downbeats`` in seconds (only those inside the cut);
+    ``real`` the dance performed to it (``num_pose_frames`` frames); ``music`` a ``[E]`` summary music embedding.
     """
 
     id: str
@@ -67,6 +67,7 @@ class HeldOutSong:
     beats: np.ndarray
     real: PoseSequence
     music: np.ndarray
+    downbeats: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 @dataclass
@@ -164,11 +165,11 @@ def load_songs(ds: DanceDataset, seconds: float, split: str = "test") -> list[He
         samples = ds.load_audio(clip)[: int(round(seconds * ds.sample_rate))]
         real = ds.load_poses(clip)
         frames = min(num_pose_frames(len(samples), ds.sample_rate, real.fps), len(real))
-        beats = ds.load_beats(clip)["beats"]
+        beats, downbeats = (ds.load_beats(clip)[key] for key in ("beats", "downbeats"))
         music = np.asarray(ds.load_features(clip, MUSIC_FEATURE_KIND)[:frames])
         songs.append(HeldOutSong(clip.id, ds.style_index(clip), samples, ds.sample_rate,
                                  beats[beats < frames / real.fps], real.slice_frames(0, frames),
-                                 music_embedding(music)))
+                                 music_embedding(music), downbeats[downbeats < frames / real.fps]))
     if not songs:
         raise DancesynthError(f"The dataset {ds.root} has no {split} clips to evaluate on; "
                               "re-create it with more `--clips`.")
@@ -229,7 +230,8 @@ def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[He
         song = songs[i]
         if cached:
             features = np.asarray(ds.load_features(clips[song.id], model.feature_kind)[: len(song.real)])
-            dance = generate_from_features(model, features, song.beats, seed=seed, snap=snap)
+            dance = generate_from_features(model, features, song.beats, seed=seed, snap=snap,
+                                           downbeats=song.downbeats)
         else:
             # Beat and window metrics count frames, so every row is judged at the dataset's frame rate.
             dance = resample(generate_dance(model, song.samples, song.sr, seed=seed, snap=snap), song.real.fps)

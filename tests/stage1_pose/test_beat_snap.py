@@ -136,8 +136,8 @@ def test_the_bar_pass_moves_each_large_move_from_the_second_beat_onto_the_downbe
         sizes = move_sizes(xy, FPS, kinematic)
         return kinematic[sizes > 0.6 * sizes.max()]
 
-    plain = snap_to_beats(poses, beats, FPS, BeatSnap(), downbeats)
-    barred = snap_to_beats(poses, beats, FPS, BeatSnap(bars=True), downbeats)
+    plain = snap_to_beats(poses, beats, FPS, BeatSnap(bars=False), downbeats)
+    barred = snap_to_beats(poses, beats, FPS, BeatSnap(), downbeats)
 
     assert beats_aligned(large_move_starts(plain), downbeats, 1).mean() == 0.0
     on_bars = beats_aligned(large_move_starts(barred), downbeats, 1)
@@ -150,8 +150,8 @@ def test_without_bars_the_downbeats_change_nothing():
     poses = swinging_arms(200, stop_offset=2.0)
     beats = np.arange(0.0, 200, BEAT_FRAMES)
     alone = snap_to_beats(poses, beats, FPS)
-    np.testing.assert_array_equal(snap_to_beats(poses, beats, FPS, BeatSnap(), beats[::4]), alone)
-    np.testing.assert_array_equal(snap_to_beats(poses, beats, FPS, BeatSnap(bars=True)), alone)
+    np.testing.assert_array_equal(snap_to_beats(poses, beats, FPS, BeatSnap(bars=False), beats[::4]), alone)
+    np.testing.assert_array_equal(snap_to_beats(poses, beats, FPS, BeatSnap(bars=False, half_time=True)), alone)
     kinematic = velocity_minimum_beats(absolute_positions(poses), FPS)
     for a, b in zip(snap_anchors(kinematic, beats, 200, 3.0, 1.5),
                     snap_anchors(kinematic, beats, 200, 3.0, 1.5, np.ones(len(kinematic)))):
@@ -163,6 +163,9 @@ def test_fast_songs_are_danced_in_half_time_from_the_downbeats():
     np.testing.assert_array_equal(dance_beats(fast, fast[1::4], FPS), fast[1::2])  # a pickup beat before the bar
     steady = np.arange(0.0, 100, BEAT_FRAMES)  # 112.5 BPM: every beat
     np.testing.assert_array_equal(dance_beats(steady, steady[::4], FPS), steady)
+    poses = swinging_arms(100, stop_offset=1.0, period=5.0)
+    half = snap_to_beats(poses, fast, FPS, BeatSnap(bars=False, half_time=True), fast[1::4])
+    np.testing.assert_allclose(half, snap_to_beats(poses, fast[1::2], FPS, BeatSnap(bars=False)))
 
 
 def test_move_sizes_are_the_path_travelled_until_the_next_movement_beat():
