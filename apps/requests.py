@@ -130,7 +130,7 @@ class Option:
             return self.flag
         return ("--no-" if self.default is True else "--") + name.replace("_", "-")
 
-    def add_to(self, parser: argparse.ArgumentParser | argparse._ActionsContainer, name: str) -> None:
+    def add_to(self, parser: argparse._ActionsContainer, name: str) -> None:
         """Add the field ``name`` to ``parser`` (or to a group of it)."""
         choices = self.choices() if callable(self.choices) else self.choices
         if self.positional:

@@ -55,8 +55,8 @@ def run(args: argparse.Namespace) -> None:
     flags = _size(request.size) if request.size else {}
     if request.batch_size:
         flags["batch_size"] = request.batch_size
-    preset = PRESETS[request.preset]
-    config = resolve_config(preset, request, flags)
+    preset_config = PRESETS[request.preset]
+    config = resolve_config(preset_config, request, flags)
     if request.print_config:
         print_config(config, request.print_config)
         return
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> None:
         torch.set_num_threads(request.threads)
     from dancesynth.api import train_video
 
-    meta = train_video(**request.api_kwargs(), overrides=chosen_fields(preset, config, request, flags))
+    meta = train_video(**request.api_kwargs(), overrides=chosen_fields(preset_config, config, request, flags))
     val = meta.get("validation", {})
     logger.info(f"saved {args.out}: epoch {meta['epoch']}, step {meta['step']}, "
                 f"held-out SSIM {val.get('ssim', float('nan')):.3f}, PSNR {val.get('psnr', float('nan')):.2f} dB")
