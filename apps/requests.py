@@ -54,7 +54,7 @@ REQUIRED: Any = _Required()
 OPTION = "option"  # the key of a request field's metadata that holds its Option
 # A number as JSON or the page's inputs write it: no underscores, hex or words (Python's float reads "1_0" as 10).
 NUMBER = re.compile(r"\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*")
-MINUTES_A_DAY = 24 * 60.0
+MINUTES_A_DAY, SECONDS_A_DAY = 24 * 60.0, 24 * 3600.0
 
 
 def shown(value: object) -> str:
@@ -216,6 +216,7 @@ class Request:
         """The request of a web page's job request ``form``: each field the page sends (its option's :class:`Page`)
         read from it and checked (a one-sentence :class:`DancesynthError`), the other fields from ``values`` (what
         the server resolved: paths of uploads, its device); ``values`` win over the form."""
+        # f.type is the annotation's text (postponed annotations): an int field takes whole numbers only.
         read = {f.name: f.metadata[OPTION].page.read(form, f.default, f.type == "int")
                 for f in dataclasses.fields(cls) if f.metadata[OPTION].page is not None and f.name not in values}
         return cls(**read, **values)
@@ -224,10 +225,6 @@ class Request:
         """The fields the web page sends, by their keys in a job request."""
         return {option.page.key: getattr(self, name) for name, option in self.options().items()
                 if option.page is not None}
-
-    def to_dict(self) -> dict[str, Any]:
-        """Every field by name (JSON-able when the values are: a web job keeps its request so)."""
-        return {name: getattr(self, name) for name in self.options()}
 
 
 # --- options several actions share -------------------------------------------------------------------------------
@@ -259,27 +256,27 @@ CHECKPOINT_EVERY = Option("optimizer steps between checkpoints (default 200)", 2
                           metavar="STEPS")
 
 
-def precision(what: str) -> Option:
+def precision_option(what: str) -> Option:
     """``--precision auto|fp32|bf16|fp16`` (default auto) for the arithmetic of ``what`` (e.g. "rendering")."""
     return Option(f"arithmetic of {what}: auto = bf16 on CPUs with AMX or AVX-512-BF16 and on GPUs (fp16 on GPUs "
                   "without bf16), fp32 elsewhere; fp16 needs CUDA (default auto)", "auto", choices=PRECISIONS)
 
 
-def resume(length: str) -> Option:
+def resume_option(length: str) -> Option:
     """``--resume``; ``length`` is the flag that sets the run's total length (e.g. ``--epochs``)."""
     return Option(f"continue the run in --out exactly where it stopped (Ctrl-C, SIGTERM, kill -9), with its own "
                   f"config and seed; {length} sets a new total", False)
 
 
-def overrides(example: str) -> Option:
+def overrides_option(example: str) -> Option:
     """``--set FIELD=VALUE`` (repeatable, after --config); ``example`` is a FIELD=VALUE shown in the help."""
     return Option(f"override one config field, after --config (repeatable; e.g. --set {example})", (),
                   flag="--set", metavar="FIELD=VALUE", cli_only=True)
 
 
 def add_trainer_arguments(parser: argparse.ArgumentParser, length: str) -> None:
-    """``--resume`` and ``--minutes``, for a trainer without a request type (``length`` as in :func:`resume`)."""
-    resume(length).add_to(parser, "resume")
+    """``--resume`` and ``--minutes``, for a trainer without a request type (``length`` as in :func:`resume_option`)."""
+    resume_option(length).add_to(parser, "resume")
     MINUTES.add_to(parser, "minutes")
 
 
@@ -322,15 +319,15 @@ class DanceRequest(Request):
     seed: int = SEED.field(help="random seed: another seed gives another dance (default 0)",
                            page=Page("seed", "seed", 0, 2**31 - 1))
     start: float = Option("segment start in seconds (default 0)", 0.0, type=non_negative_float, metavar="S",
-                          page=Page("start", "segment start (seconds)", 0.0, 24 * 3600.0)).field()
+                          page=Page("start", "segment start (seconds)", 0.0, SECONDS_A_DAY)).field()
     duration: float | None = Option(
         "segment length in seconds (default: to the end of the song)", None, type=positive_float, metavar="D",
-        page=Page("duration", "segment duration (seconds)", 1.0, 24 * 3600.0)).field()
+        page=Page("duration", "segment duration (seconds)", 1.0, SECONDS_A_DAY)).field()
     height: int | None = HEIGHT.field()
     crop: bool = CROP.field()
     skeleton_preview: PathLike | None = SKELETON_PREVIEW.field()
     side_by_side: PathLike | None = SIDE_BY_SIDE.field()
-    precision: str = precision("the appearance model's training (with --target) and rendering").field()
+    precision: str = precision_option("the appearance model's training (with --target) and rendering").field()
     beat_snap: bool = BEAT_SNAP.field()
     device: str = DEVICE.field()
     beats: str = BEATS.field()
@@ -355,7 +352,7 @@ class RenderRequest(Request):
     side_by_side: PathLike | None = SIDE_BY_SIDE.field()
     optimize: bool = Option("plain PyTorch forward (slower, for debugging)", True).field()
     device: str = DEVICE.field()
-    precision: str = precision("rendering").field()
+    precision: str = precision_option("rendering").field()
     threads: int | None = THREADS.field()
 
 
@@ -424,7 +421,7 @@ class TrainVideoRequest(Request):
     size: str | None = Option("model resolution override, e.g. 256x256 (multiple of 8)", None, metavar="WxH",
                               cli_only=True).field()
     epochs: int | None = EPOCHS.field(help="total epochs (default: the preset's 100 + 100 decaying)")
-    resume: bool = resume("--epochs").field()
+    resume: bool = resume_option("--epochs").field()
     minutes: float | None = MINUTES.field(page=Page("minutes", "training budget (minutes)", 0.05, MINUTES_A_DAY,
                                                     default=10.0))
     batch_size: int | None = Option("consecutive-frame pairs per step (preset default)", None, type=positive_int,
@@ -438,10 +435,10 @@ class TrainVideoRequest(Request):
                                metavar="STEPS").field()
     seed: int = SEED.field()
     device: str = DEVICE.field()
-    precision: str = precision("the forward passes (weights stay float32)").field()
+    precision: str = precision_option("the forward passes (weights stay float32)").field()
     threads: int | None = THREADS.field()
     config: str | None = CONFIG.field()
-    overrides: tuple[str, ...] = overrides("lambda_l1=5").field()
+    overrides: tuple[str, ...] = overrides_option("lambda_l1=5").field()
     print_config: str | None = PRINT_CONFIG.field()
 
 
@@ -457,10 +454,10 @@ class TrainPoseRequest(Request):
     out: PathLike = Option("run folder for the model and logs", type=output_folder, metavar="RUN_DIR").field()
     preset: str = Option("config preset: small (CPU) or paper (default small)", "small").field()
     config: str | None = CONFIG.field()
-    overrides: tuple[str, ...] = overrides("hidden=256").field()
+    overrides: tuple[str, ...] = overrides_option("hidden=256").field()
     print_config: str | None = PRINT_CONFIG.field()
     epochs: int | None = EPOCHS.field()
-    resume: bool = resume("--epochs").field()
+    resume: bool = resume_option("--epochs").field()
     minutes: float | None = MINUTES.field()
     batch_size: int | None = Option("global batch size in windows (default: the preset's)", None,
                                     type=positive_int).field()

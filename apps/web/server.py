@@ -597,7 +597,7 @@ class WebApp:
                 return self._train_job(body) if kind == "train" else self._preview_job(body)
             if kind == "demo":
                 request = DemoRequest.from_form(body, out=str(self.data / "demo"), device=self.device)
-                return self.jobs.create("demo", f"demo, {request.minutes:g} min", request.to_dict(),
+                return self.jobs.create("demo", f"demo, {request.minutes:g} min", dataclasses.asdict(request),
                                         self._demo_command(request))
         raise DancesynthError(f"Unknown job kind {shown(kind)}; choose dance, train, preview or demo.")
 
@@ -623,7 +623,7 @@ class WebApp:
         if request.start > song["duration"] - 1.0:
             raise DancesynthError(f"The segment start {request.start:g} s is too close to the end of the song, which "
                                   f"lasts {song['duration']:.1f} s; choose a start at least 1 s before its end.")
-        return self.jobs.create("dance", f"{song['name']} danced by {target}", request.to_dict(),
+        return self.jobs.create("dance", f"{song['name']} danced by {target}", dataclasses.asdict(request),
                                 shlex.join(request.to_command()))
 
     def _train_job(self, body: dict) -> dict:

@@ -1,6 +1,7 @@
 """One definition per user action (apps/requests.py): every request survives its command line and its page form,
 and each API function has exactly its request's fields, defaults and documented arguments."""
 
+import dataclasses
 import inspect
 import re
 import shlex
@@ -113,7 +114,7 @@ def test_every_page_job_survives_its_form(tmp_path, kind):
     form = request.to_form()
     assert form and set(form) <= set(JOB_FIELDS[kind])
     on_page = {name for name, option in cls.options().items() if option.page is not None}
-    rest = {name: value for name, value in request.to_dict().items() if name not in on_page}
+    rest = {name: value for name, value in dataclasses.asdict(request).items() if name not in on_page}
     for sent in (form, {key: str(value) for key, value in form.items()}):
         assert cls.from_form(sent, **rest) == request
 
