@@ -19,6 +19,7 @@ from web_client import FORM, PAGE, call, form, wav
 import apps.demo
 from apps.cli import build_parser, main
 from apps.demo import DemoPlan
+from apps.requests import DanceRequest
 from apps.web.jobs import JobStore, parse_progress
 from apps.web.server import create_app
 from apps.web.tasks import demo_job
@@ -131,11 +132,14 @@ def test_the_commands_of_jobs_at_every_preset_the_page_offers_are_accepted_by_th
     for preset in offered:
         for body in ({"kind": "train", "video": video, "minutes": 1, "preset": preset},
                      {"kind": "dance", "song": song, "video": video, "minutes": 1, "preset": preset}):
-            argv = shlex.split(web.create_job(body)["command"])
+            job = web.create_job(body)
+            argv = shlex.split(job["command"])
             assert argv[0] == "dancesynth"
             args = build_parser().parse_args(argv[1:])
             assert args.command == {"train": "train-video", "dance": "dance"}[body["kind"]]
             assert args.preset in PRESETS and (preset == "auto" or args.preset == preset)
+            if body["kind"] == "dance":  # the command makes the very request the job runs
+                assert DanceRequest.from_namespace(args) == DanceRequest(**job["params"])
     web.close()
 
 
