@@ -132,7 +132,7 @@ def snap_to_beats(poses: np.ndarray, beat_frames: np.ndarray, fps: float, settin
     if frames < 4 or len(beat_frames) == 0:
         return poses
     # Each pass: (music frames to land on, reach in frames, whether movement beats weigh by the move they start).
-    bar_pass = []
+    bar_pass: list[tuple[np.ndarray, float, bool]] = []
     has_bars = downbeat_frames is not None and len(downbeat_frames) > 0
     if settings.half_time and has_bars:
         beat_frames = dance_beats(beat_frames, downbeat_frames, fps)
