@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> None:
     from stage1_pose.style_classifier import train_on_dataset
 
     check_outputs({}, {"dataset": args.data}, folders={"run folder": args.out})
-    clf, test_acc = train_on_dataset(args.data, args.out, args.preset, args.steps, args.minutes, args.seed, args.device,
-                                     args.resume)
+    clf, test_acc = train_on_dataset(args.data, args.out, preset=args.preset, steps=args.steps, minutes=args.minutes,
+                                     seed=args.seed, device=args.device, resume=args.resume)
     logger.info(f"wrote {args.out}: styles {', '.join(clf.styles)}; accuracy on the test split's real dances "
                 f"{100 * test_acc:.1f} %")
