@@ -43,14 +43,6 @@ from stage2_video.presets import describe_presets, preset_names
 PathLike = str | os.PathLike
 
 
-class _Required:
-    """The default of a field the user must give."""
-
-    def __repr__(self) -> str:
-        return "REQUIRED"
-
-
-REQUIRED: Any = _Required()
 OPTION = "option"  # the key of a request field's metadata that holds its Option
 # A number as JSON or the page's inputs write it: no underscores, hex or words (Python's float reads "1_0" as 10).
 NUMBER = re.compile(r"\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?\s*")
@@ -66,14 +58,12 @@ def shown(value: object) -> str:
 @dataclass(frozen=True)
 class Page:
     """How the web page sends a number field: its ``key`` in a job request, the words ``what`` a sentence names it
-    by, the range ``[low, high]`` the server accepts (in the field's unit), and the value an absent key means
-    (None: the field's own default)."""
+    by, and the range ``[low, high]`` the server accepts (in the field's unit)."""
 
     key: str
     what: str
     low: float
     high: float
-    default: float | None = None
 
     def read(self, form: Mapping[str, Any], default: Any, integer: bool) -> Any:
         """The number ``form[key]`` (a JSON number, or a decimal in a string as the page's inputs send it; absent,
@@ -81,7 +71,7 @@ class Page:
         :class:`DancesynthError` sentence when it does not."""
         value = form.get(self.key)
         if value is None or value == "":
-            return default if self.default is None else self.default
+            return default
         number = (float(value) if isinstance(value, (int, float)) and not isinstance(value, bool)
                   else float(value) if isinstance(value, str) and NUMBER.fullmatch(value) else None)
         if number is None or (integer and not number.is_integer()):
@@ -105,7 +95,8 @@ class Option:
     """
 
     help: str
-    default: Any = REQUIRED
+    # dataclasses.MISSING: required. A factory, as a plain ``= MISSING`` would make ``default`` a required argument.
+    default: Any = dataclasses.field(default_factory=lambda: dataclasses.MISSING)
     type: Callable[[str], Any] | None = None
     choices: tuple[str, ...] | Callable[[], tuple[str, ...]] | None = None
     metavar: str | None = None
@@ -119,8 +110,7 @@ class Option:
     def field(self, **changes: Any) -> Any:
         """A dataclass field holding this option with ``changes`` (e.g. another ``help``)."""
         option = replace(self, **changes)
-        default = dataclasses.MISSING if option.default is REQUIRED else option.default
-        return dataclasses.field(default=default, metadata={OPTION: option})
+        return dataclasses.field(default=option.default, metadata={OPTION: option})
 
     def spelling(self, name: str) -> str:
         """How the command line names the field ``name``: its flag, or its name when it is positional."""
@@ -141,7 +131,7 @@ class Option:
             spec["action"] = "store_false" if self.default else "store_true"
         else:
             spec.update(type=self.type, choices=choices, metavar=self.metavar)
-            if self.default is REQUIRED:
+            if self.default is dataclasses.MISSING:
                 spec["required"] = True
             elif isinstance(self.default, tuple):
                 spec.update(action="append", default=list(self.default))
@@ -216,8 +206,8 @@ class Request:
         """The request of a web page's job request ``form``: each field the page sends (its option's :class:`Page`)
         read from it and checked (a one-sentence :class:`DancesynthError`), the other fields from ``values`` (what
         the server resolved: paths of uploads, its device); ``values`` win over the form."""
-        # f.type is the annotation's text (postponed annotations): an int field takes whole numbers only.
-        read = {f.name: f.metadata[OPTION].page.read(form, f.default, f.type == "int")
+        # A field whose default is an int takes whole numbers only.
+        read = {f.name: f.metadata[OPTION].page.read(form, f.default, type(f.default) is int)
                 for f in dataclasses.fields(cls) if f.metadata[OPTION].page is not None and f.name not in values}
         return cls(**read, **values)
 
@@ -408,8 +398,8 @@ class ExtractPosesRequest(Request):
 @dataclass(frozen=True, kw_only=True)
 class TrainVideoRequest(Request):
     """`dancesynth train-video`, :func:`dancesynth.api.train_video` (the command turns --size, --batch-size,
-    --config and --set into its ``overrides``), and the command of the page's training job, whose ``minutes`` the
-    page gives as minutes more."""
+    --config and --set into its ``overrides``), and the command of the page's training job (whose page sends the
+    minutes more, which the server adds to the minutes trained: see ``apps.web.server``)."""
 
     COMMAND: ClassVar[str] = "train-video"
 
@@ -422,8 +412,7 @@ class TrainVideoRequest(Request):
                               cli_only=True).field()
     epochs: int | None = EPOCHS.field(help="total epochs (default: the preset's 100 + 100 decaying)")
     resume: bool = resume_option("--epochs").field()
-    minutes: float | None = MINUTES.field(page=Page("minutes", "training budget (minutes)", 0.05, MINUTES_A_DAY,
-                                                    default=10.0))
+    minutes: float | None = MINUTES.field()
     batch_size: int | None = Option("consecutive-frame pairs per step (preset default)", None, type=positive_int,
                                     cli_only=True).field()
     poses: PathLike | None = Option("poses of TARGET_VIDEO to use instead of extracting", None, type=existing_file,

@@ -63,7 +63,7 @@ from fastapi.staticfiles import StaticFiles
 from starlette.concurrency import run_in_threadpool
 from starlette.exceptions import HTTPException
 
-from apps.requests import DanceRequest, DemoRequest, ExtractPosesRequest, TrainVideoRequest, shown
+from apps.requests import MINUTES_A_DAY, DanceRequest, DemoRequest, ExtractPosesRequest, Page, TrainVideoRequest, shown
 from apps.web.jobs import DataFolderLock, JobStore
 from apps.web.uploads import (
     FORM_BYTES,
@@ -103,6 +103,9 @@ JOB_FIELDS = {"dance": ("kind", "song", "start", "duration", "seed", "pose_model
               "train": ("kind", "model", "video", "minutes", "preset"),
               "preview": ("kind", "video"),
               "demo": ("kind", "minutes")}
+# A training job's minutes are minutes more (train-video's --minutes counts the run's time in all), 10 when not sent.
+TRAIN_MORE = Page("minutes", "training budget (minutes)", 0.05, MINUTES_A_DAY)
+TRAIN_MORE_DEFAULT = 10.0
 LOSSES = "losses.csv"
 LOSS_ROWS = 500  # the page's loss plot needs no more
 # What GET /api/models tells of each cached model.
@@ -643,15 +646,14 @@ class WebApp:
             video, name = Path(upload["path"]), upload["name"]
             preset = resolve_preset(body.get("preset", AUTO), self.device)
         entry = entry_path(video, preset, self.cache)
-        # The page asks for minutes more; train-video's --minutes counts the run's time in all.
-        request = TrainVideoRequest.from_form(body, video=str(video), out=str(entry), preset=preset,
-                                              device=self.device)
+        more = TRAIN_MORE.read(body, TRAIN_MORE_DEFAULT, integer=False)
         trained = read_entry(entry)
-        in_all = request.minutes + (trained.trained_seconds / 60 if trained is not None else 0.0)
-        command = dataclasses.replace(request, minutes=in_all, resume=trained is not None).to_command()
-        return self.jobs.create("train", f"appearance model of {name}, {request.minutes:g} min more",
-                                {"target": str(video), "minutes": request.minutes, "preset": preset,
-                                 "entry": entry.name}, shlex.join(command))
+        done = trained.trained_seconds / 60 if trained is not None else 0.0
+        request = TrainVideoRequest(video=str(video), out=str(entry), preset=preset, minutes=more + done,
+                                    resume=trained is not None, device=self.device)
+        return self.jobs.create("train", f"appearance model of {name}, {more:g} min more",
+                                {"target": str(video), "minutes": more, "preset": preset, "entry": entry.name},
+                                shlex.join(request.to_command()))
 
     def _preview_job(self, body: dict) -> dict:
         upload = self.upload(body.get("video") or "", "video")

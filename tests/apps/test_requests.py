@@ -12,7 +12,6 @@ import dancesynth.api
 from apps import demo
 from apps.cli import build_parser
 from apps.requests import (
-    REQUIRED,
     DanceRequest,
     DemoRequest,
     ExtractPosesRequest,
@@ -21,7 +20,7 @@ from apps.requests import (
     TrainPoseRequest,
     TrainVideoRequest,
 )
-from apps.web.server import JOB_FIELDS
+from apps.web.server import JOB_FIELDS, TRAIN_MORE, TRAIN_MORE_DEFAULT
 from dancesynth.core.errors import DancesynthError
 from stage1_pose.registry import method_names
 from stage2_video.presets import preset_names
@@ -32,8 +31,9 @@ API = {DanceRequest: (dancesynth.api.dance, ()), RenderRequest: (dancesynth.api.
        GenerateRequest: (dancesynth.api.generate, ()), ExtractPosesRequest: (dancesynth.api.extract_poses, ()),
        TrainVideoRequest: (dancesynth.api.train_video, ("overrides",)),
        TrainPoseRequest: (dancesynth.api.train_pose, ("overrides",)), DemoRequest: (demo.run_demo, ("plan",))}
-# The page's job kinds and the request each one's fields belong to.
-PAGE_JOBS = {"dance": DanceRequest, "train": TrainVideoRequest, "demo": DemoRequest}
+# The page's job kinds and the request each one's fields belong to (a training job's one field, its minutes more,
+# is the server's own: test_a_training_jobs_minutes_more_are_read_from_its_form).
+PAGE_JOBS = {"dance": DanceRequest, "demo": DemoRequest}
 
 
 def _file(path, content=b"x"):
@@ -125,7 +125,18 @@ def test_a_page_field_out_of_its_range_is_a_sentence():
     with pytest.raises(DancesynthError, match=r"^The segment duration \(seconds\) must be between 1 and 86400, "
                                               r"got '0.5'\.$"):
         DanceRequest.from_form({"duration": "0.5"}, song="s.wav", out="o.mp4", video_model="m")
-    assert TrainVideoRequest.from_form({}, video="v.mp4", out="run").minutes == 10.0  # the page's default
+
+
+def test_a_training_jobs_minutes_more_are_read_from_its_form():
+    """A training job's minutes are minutes more, read apart from its TrainVideoRequest (whose minutes are the
+    run's in all), as a JSON number or the page's text, 10 when not sent, out of range a sentence."""
+    assert TRAIN_MORE.key in JOB_FIELDS["train"]
+    for sent in (2.5, "2.5", " 2.5 "):
+        assert TRAIN_MORE.read({"minutes": sent}, TRAIN_MORE_DEFAULT, integer=False) == 2.5
+    assert TRAIN_MORE.read({}, TRAIN_MORE_DEFAULT, integer=False) == 10.0
+    with pytest.raises(DancesynthError, match=r"^The training budget \(minutes\) must be between 0.05 and 1440, "
+                                              r"got 0.01\.$"):
+        TRAIN_MORE.read({"minutes": 0.01}, TRAIN_MORE_DEFAULT, integer=False)
 
 
 @pytest.mark.parametrize("cls", API, ids=lambda cls: cls.COMMAND)
@@ -136,7 +147,7 @@ def test_each_api_function_has_its_requests_fields_defaults_and_documentation(cl
     assert set(parameters) == {*fields, *extra}
     for name, option in fields.items():
         # A required field of the command may be optional in Python (generate's out: the dance is returned).
-        if option.default is not REQUIRED:
+        if option.default is not dataclasses.MISSING:
             assert parameters[name].default == option.default, (cls.COMMAND, name)
         assert re.search(rf"\b{name}\b", function.__doc__), f"{function.__name__}'s docstring does not say {name}"
 
