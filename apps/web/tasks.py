@@ -22,6 +22,7 @@ import time
 import traceback
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from apps.logs import configure_logging
 from apps.web.job_folder import JOB_FILE, LOG_FILE, OUT, RESULT_FILE, write_json
@@ -29,6 +30,9 @@ from apps.web.uploads import user_message
 from dancesynth.core import progress
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import os_error_sentence
+
+if TYPE_CHECKING:
+    from apps.requests import Request
 
 logger = logging.getLogger(__name__)
 
@@ -46,14 +50,24 @@ def _relative(path: Path, data: Path) -> str:
     return str(Path(path).resolve().relative_to(data.resolve()))
 
 
+def _request(cls: type[Request], params: dict) -> Request:
+    """The request a job keeps as its ``params``; a sentence (not a TypeError) for a job queued by an older
+    dancesynth, whose request had other fields."""
+    try:
+        return cls(**params)
+    except TypeError as e:
+        raise DancesynthError("This job was queued by an older dancesynth and cannot run; start it again from the "
+                              "page.") from e
+
+
 def dance_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
     """The dance, its skeleton and side-by-side videos, by :func:`apps.pipeline.dance`; ``params`` is the job's
     :class:`~apps.requests.DanceRequest`, its outputs named relative to the job's folder ``out``."""
     from apps.pipeline import dance
     from apps.requests import DanceRequest
 
+    request = _request(DanceRequest, params)
     out.mkdir(exist_ok=True)
-    request = DanceRequest(**params)
     files = {"dance": out / request.out, "skeleton": out / request.skeleton_preview,
              "side_by_side": out / request.side_by_side}
     result = dance(dataclasses.replace(request, out=files["dance"], skeleton_preview=files["skeleton"],
@@ -109,7 +123,7 @@ def demo_job(params: dict, out: Path, settings: dict) -> tuple[dict, dict]:
     from apps.demo import DemoPlan, run_demo
     from apps.requests import DemoRequest
 
-    request = DemoRequest(**params)
+    request = _request(DemoRequest, params)
     plan = DemoPlan(**settings["demo"]) if settings.get("demo") else None
     run_demo(**request.api_kwargs(), plan=plan)
     folder, data = Path(request.out), Path(settings["data"])

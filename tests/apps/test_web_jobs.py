@@ -22,7 +22,7 @@ from apps.demo import DemoPlan
 from apps.requests import DanceRequest
 from apps.web.jobs import JobStore, parse_progress
 from apps.web.server import create_app
-from apps.web.tasks import demo_job
+from apps.web.tasks import dance_job, demo_job
 from dancesynth.core.errors import DancesynthError
 from stage2_video.presets import PRESETS, preset_names
 
@@ -116,6 +116,18 @@ def test_a_demo_jobs_command_makes_the_call_the_job_makes(tmp_path, monkeypatch)
             exec(argv[2], {})
         assert calls[-1] == calls[-2] == (str(tmp_path / "data" / "demo"), 2.5, 0, "cpu", plan or DemoPlan())
         web.close()
+
+
+def test_a_job_queued_by_an_older_server_ends_with_a_sentence(tmp_path):
+    """A job.json whose request has fields this dancesynth's request has not (or lacks its required ones) fails with
+    one sentence, not a TypeError "failed unexpectedly"."""
+    older = "^This job was queued by an older dancesynth and cannot run; start it again from the page.$"
+    settings = {"data": str(tmp_path)}
+    with pytest.raises(DancesynthError, match=older):
+        dance_job({"song_path": "song.wav", "out": "dance.mp4", "video_model": "m"}, tmp_path / "out", settings)
+    with pytest.raises(DancesynthError, match=older):
+        demo_job({"out": str(tmp_path / "demo"), "budget": 2.5}, tmp_path / "demo", settings)
+    assert not (tmp_path / "out").exists()
 
 
 def test_the_commands_of_jobs_at_every_preset_the_page_offers_are_accepted_by_the_cli(tmp_path, monkeypatch):
