@@ -27,9 +27,8 @@ seconds of every Frets-on-Fire recording (the packages' full ``song.ogg``) that 
 Each model gets two rows by default: ``raw``, the method's own timing (what ``dancesynth evaluate`` scores), and
 ``snap``, the dance retimed onto the tracked beats (:mod:`stage1_pose.beat_snap`), as ``dancesynth dance`` and
 ``generate`` make it (the largest moves on the tracked downbeats too); ``beats`` retimes onto the beats alone
-(``BeatSnap(bars=False)``), ``half`` dances fast songs in half time as well (``BeatSnap(half_time=True)``).
-``--snap`` names the rows wanted (``--snap raw beats snap half``). ``jerk`` is the mean |d³x/dt³|
-of the joints (px/s³), to see what the retiming costs in smoothness.
+(``BeatSnap(bars=False)``). ``--snap`` names the rows wanted (``--snap raw beats snap``). ``jerk`` is the mean
+|d³x/dt³| of the joints (px/s³), to see what the retiming costs in smoothness.
 """
 
 from __future__ import annotations
@@ -43,7 +42,6 @@ from beat_benchmark import _FOF, DEFAULT_CACHE, SPLIT, SR, load_audio
 
 from dancesynth.core.media import SONG_SAMPLE_RATE
 from dancesynth.core.motion import (
-    beats_aligned,
     chance_hit_rate,
     kinematic_beats,
     legs_arms_speed_ratio,
@@ -56,13 +54,14 @@ from stage1_pose.beats import song_beats
 from stage1_pose.data.dataset import DanceDataset
 from stage1_pose.evaluate import row_names
 from stage1_pose.generate import generate_dance, load_pose_model
+from stage1_pose.metrics import beat_hit_rate
 
 TOLERANCES = (1, 2)
 DEFINITIONS = {"vmin": velocity_minimum_beats, "d2m": kinematic_beats}
 # Speed windows at the start and end of the dance, seconds.
 SPEED_WINDOW = 10.0
 GOAL_MARGIN = 0.10
-TIMINGS = {"raw": None, "beats": BeatSnap(bars=False), "snap": DEFAULT_SNAP, "half": BeatSnap(half_time=True)}
+TIMINGS = {"raw": None, "beats": BeatSnap(bars=False), "snap": DEFAULT_SNAP}
 # Big moves: the movement beats starting this share of the dance's moves, the largest (one in four: a move a bar in
 # 4/4 when the moves go by beats).
 BIG_SHARE = 0.25
@@ -74,8 +73,7 @@ def _hit_and_chance(kin: np.ndarray, music: np.ndarray, frames: int, tol: int,
                     rng: np.random.Generator) -> tuple[float, float]:
     """(share of movement beats ``kin`` within ``tol`` frames of ``music`` (frames), the same share after random
     circular shifts within the ``frames``-frame dance); NaN without movement beats."""
-    hit = float(beats_aligned(kin, music, tol).mean()) if kin.size else float("nan")
-    return hit, chance_hit_rate(kin, music, frames, rng, tolerance_frames=tol)
+    return beat_hit_rate(kin, music, tol), chance_hit_rate(kin, music, frames, rng, tolerance_frames=tol)
 
 
 def _within(times: list[float], seconds: float) -> np.ndarray:
@@ -137,13 +135,14 @@ def slow_down_table(models: list[tuple[str, Path, BeatSnap | None]], songs: list
     the last 10 s over the real built-in dances' speed (min) when ``real_speed`` is given."""
     print(f"\nslow-down on {len(songs)} long songs x {len(songs[0][1]) / SR:.0f} s, seeds {seeds}")
     print(f"{'model':22s} {'end/start mean (min)':>21s} {'last 10 s/real min':>19s}")
+    tracked = [song_beats(np.asarray(y, np.float32), SR) for _, y in songs]  # once per song, as generate_dance would
     for name, run, snap in models:
         model = load_pose_model(run, device="cpu")
         window = int(round(SPEED_WINDOW * model.fps))
         ratios, ends = [], []
-        for _, y in songs:
+        for (_, y), song in zip(songs, tracked):
             for seed in seeds:
-                xy = generate_dance(model, y, SR, seed, snap).keypoints[..., :2]
+                xy = generate_dance(model, y, SR, seed, snap, beats=song).keypoints[..., :2]
                 ratios.append(mean_speed(xy[-window:], model.fps) / mean_speed(xy[:window], model.fps))
                 ends.append(mean_speed(xy[-window:], model.fps))
         ratio = np.array(ratios)
@@ -162,7 +161,7 @@ def main() -> None:
     parser.add_argument("--long", type=float, metavar="S", help="also dance S seconds of the long recordings")
     parser.add_argument("--snap", nargs="+", choices=TIMINGS, default=["raw", "snap"],
                         help="rows for the methods' own timing (raw), the retiming onto beats alone (beats), "
-                             "the product's retiming (snap), with half time on fast songs (half)")
+                             "the product's retiming (snap)")
     parser.add_argument("--split", choices=("dev", "test", "all"), default="all",
                         help="the beat benchmark's half to dance (beat_benchmark.SPLIT)")
     args = parser.parse_args()

@@ -22,9 +22,7 @@ as the papers do. It generalises Dancing2Music's warper (which stretches its dan
 5. Bars (``bars``; measured in docs/methods/beat_tracking.md, "Meter for dancers"): dancers count in bars, so,
    given the song's downbeats, a first pass moves the movement beats that start the largest moves (most path
    travelled until the next movement beat) onto the downbeats, each by at most ``BAR_REACH_BEATS`` beats, before
-   the beat passes. ``half_time`` (off: it costs beat hits) dances a fast song in half time
-   (:func:`stage1_pose.beats.dance_tempo`): the beat passes and the accent use every other beat counted from the
-   downbeats (:func:`dance_beats`).
+   the beat passes.
 
 Poses are in model coordinates (:func:`dancesynth.core.skeleton.normalize`), ``[T, 25, 2]``; beats in pose
 frames (fractional: seconds x fps).
@@ -41,7 +39,6 @@ from scipy.interpolate import PchipInterpolator
 from scipy.special import betainc
 
 from dancesynth.core.motion import joint_speeds, velocity_minimum_beats
-from stage1_pose.beats import dance_tempo
 from stage1_pose.models.kinematics import absolute_positions, bone_vectors, forward_kinematics, joint_lengths
 
 # Beta(a, b) distribution function of the accent: a = 2 starts each beat interval at rest; b = 1.2 keeps the speed up
@@ -63,9 +60,8 @@ class BeatSnap:
     # Retiming moves the smoothed speed's minima a little; each pass snaps what the previous one left off the beat.
     passes: int = 3
     accent: float = 0.8
-    # Where downbeats are given: the largest moves onto them; fast songs in half time (see the module).
+    # Where downbeats are given: the largest moves onto them (see the module).
     bars: bool = True
-    half_time: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.accent <= 1.0:
@@ -124,7 +120,7 @@ def snap_to_beats(poses: np.ndarray, beat_frames: np.ndarray, fps: float, settin
     """``[T, 25, 2]`` model-coordinate poses -> the same dance retimed so that its movement beats land on
     ``beat_frames`` (fractional pose frames) where a gentle retiming can put them (see the module's doc); with
     ``downbeat_frames`` (fractional pose frames, a subset of the beats) the largest moves start on the downbeats
-    (``settings.bars``) and fast songs are danced in half time (``settings.half_time``).
+    (``settings.bars``).
 
     Each pass finds the anchors on the dance retimed so far; the passes' retimings are composed and the dance is
     read once, from the original frames, so that it is interpolated (and smoothed) only once."""
@@ -134,8 +130,6 @@ def snap_to_beats(poses: np.ndarray, beat_frames: np.ndarray, fps: float, settin
     # Each pass: (music frames to land on, reach in frames, whether movement beats weigh by the move they start).
     bar_pass: list[tuple[np.ndarray, float, bool]] = []
     has_bars = downbeat_frames is not None and len(downbeat_frames) > 0
-    if settings.half_time and has_bars:
-        beat_frames = dance_beats(beat_frames, downbeat_frames, fps)
     if settings.bars and has_bars and len(beat_frames) > 1:
         bar_pass = [(downbeat_frames, BAR_REACH_BEATS * float(np.median(np.diff(beat_frames))), True)]
     passes = bar_pass + [(beat_frames, settings.max_shift * fps, False)] * settings.passes
@@ -151,7 +145,11 @@ def snap_to_beats(poses: np.ndarray, beat_frames: np.ndarray, fps: float, settin
             weights = sizes / max(float(sizes.max(initial=0.0)), 1e-12)
         src, dst = snap_anchors(kinematic, targets, frames, reach, settings.max_rate, weights)
         if len(src) == 2:
-            continue
+            # Nothing moves. After the bar pass the beat passes still run; after a beat pass the dance is the one
+            # this pass read, so every later beat pass would find the same nothing.
+            if by_size:
+                continue
+            break
         step = np.clip(PchipInterpolator(dst, src)(t), 0.0, frames - 1.0)
         source_time = np.interp(step, t, source_time)
         snapped = read_at(source_time)
@@ -168,23 +166,6 @@ def move_sizes(xy: np.ndarray, fps: float, movement_beats: np.ndarray) -> np.nda
     starts = np.asarray(movement_beats, np.int64).ravel()
     ends = np.append(starts[1:], len(xy) - 1)
     return travelled[ends] - travelled[starts]
-
-
-def dance_beats(beat_frames: np.ndarray, downbeat_frames: np.ndarray, fps: float) -> np.ndarray:
-    """The beats a dancer steps on (fractional pose frames): all of ``beat_frames`` at a tempo (from their median
-    spacing) up to :data:`stage1_pose.beats.DANCE_MAX_BPM`; above it every other beat (every fourth above twice
-    that), counted from the nearest downbeat before (before the first: back from it)."""
-    beats = np.asarray(beat_frames, np.float64).ravel()
-    if len(beats) < 2:
-        return beats
-    bpm = 60.0 * fps / float(np.median(np.diff(beats)))
-    step = int(round(bpm / dance_tempo(bpm)))
-    if step == 1:
-        return beats
-    on_bar = np.unique(np.abs(beats[:, None] - np.asarray(downbeat_frames, np.float64)[None]).argmin(axis=0))
-    index = np.arange(len(beats))
-    bar_start = on_bar[np.maximum(np.searchsorted(on_bar, index, side="right") - 1, 0)]
-    return beats[(index - bar_start) % step == 0]
 
 
 def accent_times(frames: int, beat_frames: np.ndarray, accent: float) -> np.ndarray:

@@ -215,16 +215,19 @@ def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[He
 
     When the model runs at the dataset's frame rate, its input features come from the dataset's feature cache
     (computed once per song, cut to the song's frames) instead of being extracted again for every seed, with
-    the dataset's beats of the song; otherwise features and beats come from the song's samples. ``beat_snap``
-    scores the dances retimed onto the beats as ``dancesynth dance`` makes them, instead of the method's own.
+    the dataset's beats of the song; otherwise features and beats come from the song's samples, as a user's song's
+    would (the beats tracked once per song, for every seed). ``beat_snap`` scores the dances retimed onto the beats
+    as ``dancesynth dance`` makes them, instead of the method's own.
     """
     from stage1_pose.beat_snap import DEFAULT_SNAP
+    from stage1_pose.beats import SongBeats, song_beats
     from stage1_pose.generate import generate_dance, generate_from_features, load_pose_model
 
     model = load_pose_model(run_dir, device)
     clips = {c.id: c for c in ds.clips()}
     cached = model.fps == ds.fps
     snap = DEFAULT_SNAP if beat_snap else None
+    tracked: dict[int, SongBeats] = {}  # song index -> its beats by the default tracker (the uncached path)
 
     def make(i: int, seed: int) -> PoseSequence:
         song = songs[i]
@@ -233,8 +236,11 @@ def model_contender(run_dir: str | os.PathLike, ds: DanceDataset, songs: list[He
             dance = generate_from_features(model, features, song.beats, seed=seed, snap=snap,
                                            downbeats=song.downbeats)
         else:
+            if i not in tracked:  # generate_dance tracks float32 samples
+                tracked[i] = song_beats(np.asarray(song.samples, np.float32), song.sr)
             # Beat and window metrics count frames, so every row is judged at the dataset's frame rate.
-            dance = resample(generate_dance(model, song.samples, song.sr, seed=seed, snap=snap), song.real.fps)
+            dance = resample(generate_dance(model, song.samples, song.sr, seed=seed, snap=snap, beats=tracked[i]),
+                             song.real.fps)
         return fit_length(dance, len(song.real))
 
     return Contender(name, make)
