@@ -55,7 +55,9 @@ def read_ahead(iterable: Iterable[T], depth: int = 2) -> Iterator[T]:
             yield item
     finally:
         stop.set()
-        worker.join()
+        # A generator dropped by its own producer (a read-ahead over a read-ahead) is closed in that thread.
+        if worker is not threading.current_thread():
+            worker.join()
 
 
 def _put(items: queue.Queue, item: object, stop: threading.Event) -> bool:

@@ -59,3 +59,25 @@ def test_stopping_early_stops_the_thread():
 def test_depth_below_one_is_refused():
     with pytest.raises(ValueError, match="depth"):
         next(read_ahead(iter([1]), depth=0))
+
+
+def test_closing_from_its_own_producer_thread_does_not_try_to_join_itself():
+    """A read-ahead whose generator is dropped by the thread producing its items (a read-ahead over a read-ahead)
+    is closed in that thread."""
+    held, taken, closed, errors = {}, threading.Event(), threading.Event(), []
+
+    def source():
+        yield 1
+        taken.wait(5)  # the consumer is out of the generator again, so it may be closed
+        try:
+            held["ahead"].close()
+        except RuntimeError as error:  # "cannot join current thread"
+            errors.append(error)
+        closed.set()
+        yield 2
+
+    held["ahead"] = read_ahead(source())
+    assert next(held["ahead"]) == 1
+    taken.set()
+    assert closed.wait(5)
+    assert errors == []
