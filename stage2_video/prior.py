@@ -7,12 +7,13 @@ retrieval). Here, for every pose to render:
 
 1. **Retrieval** (:class:`FrameBank`): the training frames whose pose is nearest by a descriptor that ignores
    position and scale (each bone's vector in torso lengths, so direction and foreshortening count, plus which face
-   points are visible). Each group of parts (head and torso, each arm, each leg) takes its own nearest frame, with
-   the bones that face the camera (shoulders, hips, face) in every group's cost so no part comes from a frame
-   facing the other way, and frames whose hands lie on the group's parts costing more (an arm too, when its hand
-   lies on the head or torso where the pose's does not: it would carry their pixels away). A choice is kept from
-   frame to frame while it stays nearly as good (no flicker), and frames within ``exclude`` of the frame being
-   learnt are never returned (the network must learn to repair a warp, not to copy its input).
+   points are visible and where they lie around the nose in head lengths: which way the head turns). Each group of
+   parts (head and torso, each arm, each leg) takes its own nearest frame, with the bones that face the camera
+   (shoulders, hips, face) and the head's turn in every group's cost so no part comes from a frame facing the other
+   way, and frames whose hands lie on the group's parts costing more (an arm too, when its hand lies on the head or
+   torso where the pose's does not: it would carry their pixels away). A choice is kept from frame to frame while
+   it stays nearly as good (no flicker), and frames within ``exclude`` of the frame being learnt are never returned
+   (the network must learn to repair a warp, not to copy its input).
 2. **Parts** (:func:`part_labels`): the source frame's person mask (:mod:`stage2_video.masks`) is split into head,
    torso, upper arms, forearms, hands, thighs and shins with feet by the nearest drawn bone (a hand belongs to
    its arm even where it rests on the torso or a thigh); torso pixels hidden by an arm are filled in from around
@@ -55,6 +56,9 @@ FACING_BONES = (0, 1, 2, 4, 5, 14, 15)
 MISSING_COST = 1.0
 # Weight of a face point seen in one pose and not the other.
 FACE_COST = 0.3
+# Weight of the face points' offsets from the nose (head lengths, squared) in every group's cost: in torso lengths
+# they are too small to tell a turned head (and the body turning with it) from a frontal one.
+HEAD_TURN_COST = 1.0
 # A frame chosen for the previous pose is kept while its cost is within this of the best (squared torso lengths).
 HYSTERESIS = 0.15
 # Retrieval cost of a bank frame whose forearm or hand lies on a group's parts (it would cover them), per point,
@@ -147,12 +151,16 @@ def torso_lengths(keypoints: np.ndarray) -> np.ndarray:
     return np.where(ok & (length > 1e-3), length, np.nan)
 
 
-def descriptor(keypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+Description = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]
+
+
+def descriptor(keypoints: np.ndarray) -> Description:
     """Position- and scale-free description of ``[..., 25, 3]`` poses.
 
     Returns:
         ``[..., B, 2]`` bone vectors in torso lengths (B = len(DESCRIPTOR_BONES)), ``[..., B]`` bool bone present,
-        ``[..., 4]`` bool face points visible.
+        ``[..., 4]`` bool face points (:data:`FACE_POINTS`) visible, ``[..., 4, 2]`` their offsets from the nose in
+        head lengths (nose to neck; 0 where unseen).
     """
     kp = np.asarray(keypoints, np.float32)
     parents = np.array([a for a, _ in DESCRIPTOR_BONES])
@@ -162,7 +170,12 @@ def descriptor(keypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarra
     present = (kp[..., parents, 2] >= MIN_CONFIDENCE) & (kp[..., children, 2] >= MIN_CONFIDENCE)
     present &= np.isfinite(torso)[..., None]
     face = kp[..., list(FACE_POINTS), 2] >= MIN_CONFIDENCE
-    return np.where(present[..., None], vectors, 0.0).astype(np.float32), present, face
+    nose, neck = kp[..., J["Nose"], :], kp[..., J["Neck"], :]
+    head = np.linalg.norm(nose[..., :2] - neck[..., :2], axis=-1)
+    face &= (nose[..., None, 2] >= MIN_CONFIDENCE) & (neck[..., None, 2] >= MIN_CONFIDENCE) & (head[..., None] > 0)
+    offsets = (kp[..., list(FACE_POINTS), :2] - nose[..., None, :2]) / np.maximum(head, 1e-6)[..., None, None]
+    return (np.where(present[..., None], vectors, 0.0).astype(np.float32), present, face,
+            np.where(face[..., None], offsets, 0.0).astype(np.float32))
 
 
 def _distance_to_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -210,14 +223,15 @@ def occlusion_costs(bank: dict[str, dict[str, np.ndarray]], query: np.ndarray) -
     return costs
 
 
-def group_costs(bank: tuple[np.ndarray, np.ndarray, np.ndarray], query: np.ndarray) -> dict[str, np.ndarray]:
+def group_costs(bank: Description, query: np.ndarray) -> dict[str, np.ndarray]:
     """Retrieval cost of every bank frame (described by :func:`descriptor`) for one ``[25, 3]`` query pose, per
     group: ``{group: [N]}``, lower is nearer (squared torso lengths summed over the group's bones and the facing
-    bones)."""
-    vectors, present, face = bank
-    q_vec, q_present, q_face = descriptor(query)
+    bones, and the head's turn in head lengths)."""
+    vectors, present, face, offsets = bank
+    q_vec, q_present, q_face, q_offsets = descriptor(query)
     per_bone = np.where(present, ((vectors - q_vec) ** 2).sum(-1), MISSING_COST) * q_present  # [N, B]
-    shared = per_bone[:, list(FACING_BONES)].sum(1) + FACE_COST * (face != q_face).sum(1)
+    turn = np.where(face & q_face, ((offsets - q_offsets) ** 2).sum(-1), 0.0).sum(1)
+    shared = per_bone[:, list(FACING_BONES)].sum(1) + FACE_COST * (face != q_face).sum(1) + HEAD_TURN_COST * turn
     return {g: shared + per_bone[:, [b for b in bones if b not in FACING_BONES]].sum(1)
             for g, bones in GROUP_BONES.items()}
 

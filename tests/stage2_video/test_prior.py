@@ -193,3 +193,16 @@ def test_retrieval_keeps_left_and_right(facing_away):
     back[[J["REye"], J["LEye"], J["Nose"]], 2] = 0.0  # seen from behind: no face
     bank = _bank(np.stack([front, back]))
     assert set(bank.retrieve(back if facing_away else front).values()) == {int(facing_away)}
+
+
+def test_the_head_and_torso_come_from_a_frame_whose_head_turns_the_same_way():
+    front = standing_pose()
+    turned = front.copy()  # eyes and ears 2 px to the image's left: the head turns, the body does not
+    turned[[J["REye"], J["LEye"], J["REar"], J["LEar"]], 0] -= 2.0
+    # A turned head on shoulders a little higher than the pose's, and the pose's body with a frontal head: in torso
+    # lengths the shoulders differ more than the face, in head lengths the face more.
+    higher = turned.copy()
+    higher[[J["RShoulder"], J["LShoulder"]], 1] -= 2.5
+    bank = _bank(np.stack([front, higher]))
+    assert bank.retrieve(turned)["core"] == 1
+    assert bank.retrieve(front)["core"] == 0
