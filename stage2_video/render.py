@@ -54,6 +54,7 @@ from stage2_video.prior import FrameBank, PriorRenderer, scaled_framing
 from stage2_video.retarget import retarget_onto
 from stage2_video.train import KIND
 from stage2_video.training_data import (
+    EXCLUDE_SECONDS,
     POSES_FILE,
     frame_bank,
     frames_file,
@@ -297,22 +298,28 @@ def onto_target(model: AppearanceModel, poses: PoseSequence, normalize: bool = T
     return fit_normalization(poses, model.target_stats).apply(poses)
 
 
-def render_layers(model: AppearanceModel, poses: PoseSequence,
-                  framings: list[Framing] | None = None) -> Iterator[tuple[np.ndarray, np.ndarray | None]]:
+def render_layers(model: AppearanceModel, poses: PoseSequence, framings: list[Framing] | None = None,
+                  first_frame: int | None = None) -> Iterator[tuple[np.ndarray, np.ndarray | None]]:
     """Yield per pose (pixels of the target's canvas, :func:`onto_target`), in order, one ``[height, width, 3]``
     uint8 RGB frame (the model's resolution times ``model.scale``, framed by ``model.output_framing(framings[t])``)
     and, for models conditioned on the warped prior, its ``[height, width]`` float32 coverage in [0, 1] (else
     None). Frame t's label map is drawn in ``framings[t]`` (default: the model's framing of the poses,
-    ``model.framing.frames``)."""
+    ``model.framing.frames``). ``first_frame``: the target video's frame the first pose was taken from, to render
+    the model's own training frames as training warps them (never from bank frames within ``EXCLUDE_SECONDS``);
+    None: from any bank frame."""
     previous = None
-    renderer = PriorRenderer(model.bank) if model.bank is not None else None
+    renderer = None
+    if model.bank is not None:
+        window = None if first_frame is None else round(EXCLUDE_SECONDS * poses.fps)
+        renderer = PriorRenderer(model.bank, exclude_frames=window)
     size = (model.config.width, model.config.height)
-    for keypoints, framing in zip(poses.keypoints, framings or model.framing.frames(poses)):
+    for t, (keypoints, framing) in enumerate(zip(poses.keypoints, framings or model.framing.frames(poses))):
         if renderer is None:
             previous = model.step(condition(keypoints, framing, model.plate), previous)
             yield to_image(previous[0]), None
             continue
-        high, low = prior_images(renderer, keypoints, model.output_framing(framing), model.plate, size)
+        frame_index = None if first_frame is None else first_frame + t
+        high, low = prior_images(renderer, keypoints, model.output_framing(framing), model.plate, size, frame_index)
         previous, frame, coverage = model.step_with_prior(condition(keypoints, framing, model.plate, low), high,
                                                           previous)
         yield frame, coverage

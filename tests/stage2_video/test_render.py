@@ -11,9 +11,9 @@ from dancesynth.core.media import probe_video
 from dancesynth.core.skeleton import PoseSequence
 from stage2_video.framing import condition
 from stage2_video.prior import PriorRenderer
-from stage2_video.render import OpenVINOGenerator, load_appearance_model, render_frames, render_video
+from stage2_video.render import OpenVINOGenerator, load_appearance_model, render_frames, render_layers, render_video
 from stage2_video.train import TrainOptions, train_video
-from stage2_video.training_data import prior_images
+from stage2_video.training_data import EXCLUDE_SECONDS, prior_images
 
 
 def test_render_streams_a_video_with_right_count_and_size(tiny_run, tiny_target, make_poses, tmp_path):
@@ -129,3 +129,24 @@ def test_an_untrained_prior_model_renders_the_warp_alone(tiny_target, tiny_confi
     for keypoints, frame in zip(seq.keypoints, render_frames(model, seq)):
         high, _ = prior_images(renderer, keypoints, model.output_framing(model.framing), model.plate, (32, 32))
         assert np.array_equal(frame, high[..., :3])
+
+
+def test_a_model_renders_its_own_training_frames_as_training_warps_them(tiny_target, tiny_config, tmp_path):
+    video, poses = tiny_target
+    run = tmp_path / "zero"
+    train_video(video, run, "small", TrainOptions(minutes=0), poses=poses, device="cpu", overrides=tiny_config)
+    model = load_appearance_model(run, "cpu")
+    seq = PoseSequence.load(poses).slice_frames(4, 8)
+    window = round(EXCLUDE_SECONDS * seq.fps)
+    retrieve, chosen = model.bank.retrieve, []
+
+    def spy(query, exclude=None, previous=None):
+        chosen.append((exclude, retrieve(query, exclude, previous)))
+        return chosen[-1][1]
+
+    model.bank.retrieve = spy
+    list(render_layers(model, seq, first_frame=4))
+    assert [e for e, _ in chosen] == [(t - window, t + window + 1) for t in range(4, 8)]
+    chosen.clear()
+    list(render_layers(model, seq))  # rendering a new dance may take any bank frame
+    assert all(e is None for e, _ in chosen)
