@@ -59,6 +59,11 @@ FACE_COST = 0.3
 # Weight of the face points' offsets from the nose (head lengths, squared) in every group's cost: in torso lengths
 # they are too small to tell a turned head (and the body turning with it) from a frontal one.
 HEAD_TURN_COST = 1.0
+# Weight of the upper arms (DESCRIPTOR_BONES 6 and 8, shoulder to elbow) in the head and torso's cost: the torso's
+# region holds where each upper arm starts, so a torso cut from a frame with the arms held out brings dark pads
+# along to the shoulders of a pose whose arms hang.
+TORSO_ARM_COST = 0.3
+UPPER_ARM_BONES = (6, 8)
 # A frame chosen for the previous pose is kept while its cost is within this of the best (squared torso lengths).
 HYSTERESIS = 0.15
 # Retrieval cost of a bank frame whose forearm or hand lies on a group's parts (it would cover them), per point,
@@ -226,14 +231,16 @@ def occlusion_costs(bank: dict[str, dict[str, np.ndarray]], query: np.ndarray) -
 def group_costs(bank: Description, query: np.ndarray) -> dict[str, np.ndarray]:
     """Retrieval cost of every bank frame (described by :func:`descriptor`) for one ``[25, 3]`` query pose, per
     group: ``{group: [N]}``, lower is nearer (squared torso lengths summed over the group's bones and the facing
-    bones, and the head's turn in head lengths)."""
+    bones, and the head's turn in head lengths; the upper arms, lighter, for the head and torso)."""
     vectors, present, face, offsets = bank
     q_vec, q_present, q_face, q_offsets = descriptor(query)
     per_bone = np.where(present, ((vectors - q_vec) ** 2).sum(-1), MISSING_COST) * q_present  # [N, B]
     turn = np.where(face & q_face, ((offsets - q_offsets) ** 2).sum(-1), 0.0).sum(1)
     shared = per_bone[:, list(FACING_BONES)].sum(1) + FACE_COST * (face != q_face).sum(1) + HEAD_TURN_COST * turn
-    return {g: shared + per_bone[:, [b for b in bones if b not in FACING_BONES]].sum(1)
-            for g, bones in GROUP_BONES.items()}
+    costs = {g: shared + per_bone[:, [b for b in bones if b not in FACING_BONES]].sum(1)
+             for g, bones in GROUP_BONES.items()}
+    costs["core"] = costs["core"] + TORSO_ARM_COST * per_bone[:, list(UPPER_ARM_BONES)].sum(1)
+    return costs
 
 
 def _segment_mask(shape: tuple[int, int], lines: list[tuple[np.ndarray, np.ndarray]],
