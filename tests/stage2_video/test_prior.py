@@ -206,3 +206,15 @@ def test_the_head_and_torso_come_from_a_frame_whose_head_turns_the_same_way():
     bank = _bank(np.stack([front, higher]))
     assert bank.retrieve(turned)["core"] == 1
     assert bank.retrieve(front)["core"] == 0
+
+
+def test_the_torso_comes_from_a_frame_whose_upper_arms_lie_like_the_poses():
+    hanging = standing_pose()
+    # The same torso with the arms held out, and the pose's hanging arms on shoulders a little higher: a torso cut
+    # from the first would carry the start of the held-out arms to the shoulders.
+    held_out = arms_out(hanging)
+    higher = hanging.copy()
+    higher[[J["RShoulder"], J["LShoulder"]], 1] -= 1.5
+    bank = _bank(np.stack([held_out, higher]))
+    assert bank.retrieve(hanging)["core"] == 1
+    assert bank.retrieve(held_out)["core"] == 0
