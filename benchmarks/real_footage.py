@@ -217,6 +217,23 @@ def contact_sheet(columns: list[list[np.ndarray]], dance_video: Path | None, out
     cv2.imwrite(str(out), cv2.cvtColor(np.concatenate(rows), cv2.COLOR_RGB2BGR), [cv2.IMWRITE_JPEG_QUALITY, 90])
 
 
+def scored_range(row: str, run_dir: Path, video: Path, poses: PoseSequence, frames: range, step: int = 1,
+                 as_trained: bool = False) -> tuple[list[int], list[bool], PoseSequence, list[np.ndarray], Scored,
+                                                    float]:
+    """Render ``run_dir`` for every ``step``-th usable frame of ``frames`` and :func:`score` it against the video:
+    (the frames picked, which of them are dance frames, their poses, the real frames, the scores, the warp's
+    milliseconds per frame). ``as_trained``: see :func:`rendered`."""
+    usable = usable_frames(poses)
+    picks = [t for t in frames[::step] if usable[t]]
+    dance = set(dance_frames(poses, frames))
+    dancing = [t in dance for t in picks]
+    commanded = poses.replace(poses.keypoints[picks])
+    rendered_frames, warp_ms = rendered(run_dir, poses, picks, as_trained)
+    wanted = set(picks)
+    reals = [f for t, f in enumerate(read_frames(video)) if t in wanted]
+    return picks, dancing, commanded, reals, score(row, rendered_frames, reals, commanded, dancing), warp_ms
+
+
 def run(args: argparse.Namespace) -> None:
     video = clip_path(args.cache, args.clip)
     runs = args.model_cache / args.clip
@@ -230,14 +247,9 @@ def run(args: argparse.Namespace) -> None:
             run_dir = train_row(video, runs / f"{row}-{minutes:g}min", row, minutes, args.preset)
             poses = PoseSequence.load(run_dir / POSES_FILE)
             held_out = split_ranges(len(poses), preset_config(args.preset).val_fraction)[1]
-            usable = usable_frames(poses)
-            picks = [t for t in held_out if usable[t]]
-            dancing = [t in set(dance_frames(poses, held_out)) for t in picks]
-            commanded = poses.replace(poses.keypoints[picks])
-            frames, warp_ms = rendered(run_dir, poses, picks)
-            reals = [f for t, f in enumerate(read_frames(video)) if t in set(picks)]
+            picks, dancing, commanded, reals, results[row], warp_ms = scored_range(row, run_dir, video, poses,
+                                                                                 held_out)
             meta = load_meta(run_dir, KIND)
-            results[row] = score(row, frames, reals, commanded, dancing)
             results[row].minutes, results[row].steps = meta["trained_seconds"] / 60, meta["step"]
             results[row].warp_ms = warp_ms
             if "real" in args.rows and "real" not in results:
@@ -274,12 +286,7 @@ def dev(args: argparse.Namespace) -> None:
     run_dir = train_row(video, args.model_cache / args.clip / "warp-0min", "warp", 0.0, args.preset)
     poses = PoseSequence.load(run_dir / POSES_FILE)
     train = split_ranges(len(poses), preset_config(args.preset).val_fraction)[0]
-    usable = usable_frames(poses)
-    picks = [t for t in train[::args.dev_step] if usable[t]]
-    dancing = [t in set(dance_frames(poses, range(picks[0], picks[-1] + 1))) for t in picks]
-    frames, _ = rendered(run_dir, poses, picks, as_trained=True)
-    reals = [f for t, f in enumerate(read_frames(video)) if t in set(picks)]
-    r = score("warp", frames, reals, poses.replace(poses.keypoints[picks]), dancing)
+    picks, dancing, _, _, r, _ = scored_range("warp", run_dir, video, poses, train, args.dev_step, as_trained=True)
     print(f"clip {video.name}, training range: {len(picks)} frames (one usable in {args.dev_step}), "
           f"{sum(dancing)} dance frames")
     print(f"warp: PCK@0.1 all {r.pck1_all:.3f}, SSIM all {r.ssim_all:.3f} | dance: PCK@0.1 {r.pck1:.3f}, "
