@@ -23,7 +23,8 @@ the real poses and composited into the full frame, on "dance frames": held-out f
 differs from the clip's median pose by more than ``DANCE_DISTANCE`` torso lengths per joint on average (standing
 still scores the plate's and the network's easy case). Printed per row: PCK@0.1 and @0.2 (BlazePose run on the
 composited frame against the real pose, torso-normalised), SSIM and PSNR inside the real person's box (grown by
-``BOX_MARGIN``), training minutes, steps and steps/s, the warp's milliseconds per frame, and for ``trained`` the
+``BOX_MARGIN``), training minutes, steps, the step kept (whose weights render: the best on the trainer's selection
+frames) and steps/s, the warp's milliseconds per frame, and for ``trained`` the
 frames/s of `dance`'s frame loop with the cached model on a ``--dance-seconds`` segment of a real song. PCK is
 partly circular for a warp (its joints land on the target by construction): read it with the image measures.
 Writes ``docs/real_footage/<clip>.jpg``: 8 held-out frames, real | warped prior | trained output (| today), and
@@ -146,6 +147,7 @@ class Scored:
     psnr: float
     minutes: float = 0.0
     steps: int = 0
+    kept: int = 0  # the step whose weights render (the best on the trainer's selection frames)
     warp_ms: float = float("nan")
 
 
@@ -251,6 +253,7 @@ def run(args: argparse.Namespace) -> None:
                                                                                  held_out)
             meta = load_meta(run_dir, KIND)
             results[row].minutes, results[row].steps = meta["trained_seconds"] / 60, meta["step"]
+            results[row].kept = int((meta.get("best") or meta)["step"])
             results[row].warp_ms = warp_ms
             if "real" in args.rows and "real" not in results:
                 results["real"] = score("real", reals, reals, commanded, dancing)
@@ -269,13 +272,13 @@ def run(args: argparse.Namespace) -> None:
           f"{args.minutes:g} min per trained model on this machine; `dance` frame loop {dance_fps:.1f} frames/s "
           f"({args.dance_seconds:g} s)")
     print(f"{'row':<8} {'PCK@0.1 all':>11} {'SSIM all':>8} | {'dance: PCK@0.1':>14} {'PCK@0.2':>7} {'SSIM':>6} "
-          f"{'PSNR':>6} | {'train min':>9} {'steps':>6} {'steps/s':>7} {'warp ms':>7}")
+          f"{'PSNR':>6} | {'train min':>9} {'steps':>6} {'kept':>6} {'steps/s':>7} {'warp ms':>7}")
     for row in ("plate", "warp", "trained", "today", "real"):
         if row in results:
             r = results[row]
             rate = r.steps / (60 * r.minutes) if r.minutes else float("nan")
             print(f"{row:<8} {r.pck1_all:11.3f} {r.ssim_all:8.3f} | {r.pck1:14.3f} {r.pck2:7.3f} {r.ssim:6.3f} "
-                  f"{r.psnr:6.2f} | {r.minutes:9.1f} {r.steps:6d} {rate:7.3f} {r.warp_ms:7.1f}")
+                  f"{r.psnr:6.2f} | {r.minutes:9.1f} {r.steps:6d} {r.kept:6d} {rate:7.3f} {r.warp_ms:7.1f}")
 
 
 def dev(args: argparse.Namespace) -> None:

@@ -245,13 +245,14 @@ def _bank(run_dir: Path, config: Pix2PixHDConfig, framing: VideoFraming) -> Fram
 
 def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", optimize: bool = True,
                           precision: str = "auto") -> AppearanceModel:
-    """Load ``RUN_DIR/latest`` (kind "stage2"); ``optimize`` compiles the generator for fast rendering;
-    ``precision`` (``auto``, ``fp32``, ``bf16``, ``fp16`` on CUDA) is what it computes in
+    """Load ``RUN_DIR/latest`` (kind "stage2") with the weights that scored best on its selection frames (the
+    latest where it has none; the warped prior alone where the best is step 0); ``optimize`` compiles the generator
+    for fast rendering; ``precision`` (``auto``, ``fp32``, ``bf16``, ``fp16`` on CUDA) is what it computes in
     (:func:`dancesynth.core.device.resolve_precision`)."""
     dev = resolve_device(device)
     dtype = resolve_precision(precision, dev)
     run_dir = Path(run_dir)
-    state_dict, meta = load_checkpoint(run_dir, KIND)
+    state_dict, meta = load_checkpoint(run_dir, KIND, best=True)
     with run_file_contents(run_dir / POINTER):
         config = config_from_dict(Pix2PixHDConfig, meta["config"])
         model = Pix2PixHD(config)
@@ -266,7 +267,8 @@ def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", opti
         lengths = np.asarray(meta["bone_lengths"], np.float64) if meta.get("bone_lengths") is not None else None
         if lengths is not None and lengths.shape != (len(BODY25_LIMBS),):
             raise ValueError(f"bone_lengths has shape {lengths.shape}, not [{len(BODY25_LIMBS)}]")
-        untrained = int(meta.get("step", 1)) == 0
+        # The step rendered: the one that scored best on the selection frames where the trainer kept it.
+        untrained = int((meta.get("best") or meta).get("step", 1)) == 0
         bank = _bank(run_dir, config, framing) if config.prior else None
     # A prior model's network gives RGB and mask, painted over the prior at the output size (step_with_prior).
     generator = model.generator.inner if config.prior else model.generator

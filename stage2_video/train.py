@@ -5,9 +5,12 @@ Run folder layout (``RUN_DIR``, a :class:`dancesynth.core.runs.RunFolder`):
   poses.npz                                               the target's poses (extracted once, or given)
   frames_<W>x<H>.npy                                      framed training frames (uint8 memory map)
   background.png                                          the target's scene without the person (stage2_video.composite)
-  losses.csv, validation.csv, losses.png                  per-step losses, held-out SSIM/PSNR, their plot
+  losses.csv, validation.csv, losses.png                  per-step losses, held-out (and selection) SSIM/PSNR, plot
   frames_<2W>x<2H>.npy, masks_<2W>x<2H>.npy               with the warped prior: the frame bank and person masks
   samples/step_XXXXXXX.png                                held-out frames: real | skeleton | (prior |) generated
+
+With a ``select_fraction`` the checkpoint keeps, beside the latest weights, those of the step that scored best on the
+selection frames (the warped prior alone, step 0, included); the model renders with those.
 
 Each step takes consecutive frame pairs (t-1, t): G renders t-1 from its skeleton and a black previous
 frame, then t from its skeleton and that generated frame, as at render time. Torchrun-ready: with
@@ -28,7 +31,7 @@ import torch
 import torch.nn.functional as F
 from torch.utils.data import DistributedSampler
 
-from dancesynth.core.checkpoint import POINTER, run_file_contents
+from dancesynth.core.checkpoint import POINTER, load_checkpoint, run_file_contents
 from dancesynth.core.config import config_from_dict, config_to_dict
 from dancesynth.core.device import precision_name, resolve_device, resolve_precision
 from dancesynth.core.errors import DancesynthError
@@ -59,6 +62,7 @@ from stage2_video.training_data import (
     check_poses_match,
     frame_bank,
     load_or_extract_poses,
+    selection_split,
     split_ranges,
     to_image,
 )
@@ -99,11 +103,15 @@ class VideoTrainer:
         self.vgg = vgg.to(device) if vgg is not None else None
         self.run_dir, self.rank, self.world = run.path, run.rank, run.world
         train_range, self.val_range = split_ranges(len(target.poses), config.val_fraction)
-        self.train_set = FramePairs(target, train_range)
+        learnt_range, self.select_range = selection_split(train_range, config.select_fraction)
+        self.train_set = FramePairs(target, learnt_range)
         if not len(self.train_set):
             raise DancesynthError("The person's body is found in too few consecutive frames of the target video to "
                                   "learn from; use a video where one person stays fully visible.")
-        self.val_frames = [t for t in self.val_range if target.usable[t]]
+        # {"step", "ssim"} of the checkpoint that scored best on the selection frames, and its weights (CPU).
+        self.best: dict | None = None
+        self.best_weights: dict[str, torch.Tensor] | None = None
+        self._validated: tuple[int, dict[str, float]] | None = None
         torch.manual_seed(options.seed)
         if device.type == "cpu":
             # A residual generator's last layer starts at zero, so its first gradients are subnormal floats, which
@@ -192,6 +200,9 @@ class VideoTrainer:
         """Train until ``epochs`` are done or the ``minutes`` budget is spent; checkpoint at the end. Ctrl-C or
         SIGTERM saves quickly (no validation), then raises :class:`KeyboardInterrupt`."""
         total_steps = self.total_epochs * len(self._batches())
+        if self.step == 0 and self.best is None and self.config.prior and self.folder.writer:
+            # The warped prior alone is the first candidate: training that makes it worse is not kept.
+            self._track_best(self._log_validation())
         with self.folder.training(lambda: self.checkpoint(validate=False), self.options.minutes, total_steps,
                                   self.step, "training") as session:
             self._loop(session)
@@ -236,14 +247,21 @@ class VideoTrainer:
 
     @torch.no_grad()
     def validate(self) -> dict[str, float]:
-        """Mean SSIM / PSNR over up to ``val_frames`` held-out frames, generated in sequence as at render time."""
+        """Mean SSIM / PSNR over up to ``val_frames`` held-out frames, and as ``select_ssim`` / ``select_psnr``
+        over the selection frames (each warped only from bank frames more than 1 s away), generated in sequence
+        as at render time."""
+        scores = self._scores(self.val_range)
+        if len(self.select_range):
+            scores |= {f"select_{k}": v for k, v in self._scores(self.select_range).items()}
+        return scores
+
+    def _scores(self, frames: range) -> dict[str, float]:
         self.model.eval()
-        frames = self.val_frames[:self.options.val_frames]
         scores_s, scores_p, previous = [], [], None
-        val = FramePairs(self.target, self.val_range)
+        pairs = FramePairs(self.target, frames)
         renderer = self.target.renderer()
-        for t in frames:
-            label, _ = val.item(t, renderer)
+        for t in [t for t in frames if self.target.usable[t]][:self.options.val_frames]:
+            label, _ = pairs.item(t, renderer)
             previous = self._generate(label[None].to(self.device), previous)
             fake = to_image(previous[0])
             real = np.asarray(self.target.frames[t])
@@ -253,6 +271,21 @@ class VideoTrainer:
         if not scores_s:
             return {"ssim": math.nan, "psnr": math.nan}
         return {"ssim": float(np.mean(scores_s)), "psnr": float(np.mean(scores_p))}
+
+    def _log_validation(self) -> dict[str, float]:
+        """This step's validation scores, computed and logged once (a budget of no step validates step 0 once)."""
+        if self._validated is None or self._validated[0] != self.step:
+            scores = self.validate()
+            self.folder.log("validation", {"step": self.step, "epoch": self.epoch, **scores})
+            self._validated = (self.step, scores)
+        return self._validated[1]
+
+    def _track_best(self, scores: dict[str, float]) -> None:
+        """Remember this step's weights when they score best so far on the selection frames."""
+        score = scores.get("select_ssim", math.nan)
+        if not math.isnan(score) and (self.best is None or score > self.best["ssim"]):
+            self.best = {"step": self.step, "ssim": score}
+            self.best_weights = {k: v.detach().to("cpu", copy=True) for k, v in self.model.state_dict().items()}
 
     @torch.no_grad()
     def write_samples(self, count: int = 3) -> None:
@@ -296,19 +329,27 @@ class VideoTrainer:
         return {"g": self.opt_g, "d": self.opt_d}
 
     def checkpoint(self, validate: bool = True) -> dict:
-        """Append held-out SSIM/PSNR to validation.csv (rank 0; unless not ``validate``), then save weights +
-        meta + optimizer/RNG state (every rank) and redraw losses.png."""
+        """Append held-out (and selection) SSIM/PSNR to validation.csv (rank 0; unless not ``validate``), then save
+        weights + meta + optimizer/RNG state (every rank), the best weights where an earlier step scored better
+        on the selection frames, and redraw losses.png."""
         meta = self.meta()
         if self.folder.writer and validate:
-            meta["validation"] = self.validate()
-            self.folder.log("validation", {"step": self.step, "epoch": self.epoch, **meta["validation"]})
-        meta = self.folder.save(self.model, meta, self.optimizers(), {"scaler": self.scaler.state_dict()})
+            meta["validation"] = self._log_validation()
+            self._track_best(meta["validation"])
+        best = None
+        if self.best is not None:
+            meta["best"] = self.best
+            best = self.best_weights if self.best["step"] != self.step else None
+        meta = self.folder.save(self.model, meta, self.optimizers(), {"scaler": self.scaler.state_dict()}, best)
         self.folder.plot("losses.png")
         return meta
 
     def restore(self) -> None:
         """Continue from the run folder's latest checkpoint exactly where it stopped."""
         meta, extra = self.folder.restore(self.model, self.optimizers())
+        if meta.get("best") is not None:
+            self.best = {"step": int(meta["best"]["step"]), "ssim": float(meta["best"]["ssim"])}
+            self.best_weights = load_checkpoint(self.folder.path, KIND, best=True)[0]
         # A run resumed in fp16 continues with its loss scale; in another precision there is none to restore.
         if self.scaler.is_enabled() and extra.get("scaler"):
             self.scaler.load_state_dict(extra["scaler"])

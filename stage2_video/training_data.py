@@ -5,7 +5,8 @@ as a uint8 ``.npy`` memory map, so memory stays flat for long videos and resumin
 are cached as ``poses.npz``. Each cache has a ``<name>.key`` file, written after the cache is complete, naming
 what it was made from (the video's SHA-256 and the options that shape it), so a cache left by an interrupted
 run or made from another video is rebuilt instead of used. The split is by time: the last ``val_fraction`` of
-the video is held out. Frames where the person's torso is absent or has an implausible length (e.g. a jump the
+the video is held out, and the last ``select_fraction`` of the rest chooses the checkpoint (:func:`selection_split`).
+Frames where the person's torso is absent or has an implausible length (e.g. a jump the
 pose estimator lost or mistook) are neither trained on nor scored: their label maps would teach the model to
 draw the person from a skeleton that is not theirs.
 """
@@ -199,6 +200,19 @@ def split_ranges(num_frames: int, val_fraction: float) -> tuple[range, range]:
     if num_frames - n_val < 2:
         raise DancesynthError(f"The video has only {num_frames} frames; use a target video of at least a few seconds.")
     return range(0, num_frames - n_val), range(num_frames - n_val, num_frames)
+
+
+def selection_split(train: range, fraction: float) -> tuple[range, range]:
+    """(learnt, selection) ranges of the training range ``train``: the selection is its last ``fraction`` (none at
+    0, else >= 2 frames), not learnt from but in the frame bank, scoring checkpoints so the trainer keeps the best
+    without looking at the held-out frames."""
+    if fraction <= 0:
+        return train, range(train.stop, train.stop)
+    n_select = max(2, int(round(len(train) * fraction)))
+    if len(train) - n_select < 2:
+        raise DancesynthError(f"The video has only {len(train)} frames to learn from; use a target video of at least "
+                              "a few seconds.")
+    return range(train.start, train.stop - n_select), range(train.stop - n_select, train.stop)
 
 
 def frame_bank(frames: np.ndarray, masks: np.ndarray, poses: PoseSequence, bank_framing: VideoFraming,

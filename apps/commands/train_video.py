@@ -16,7 +16,9 @@ Train a pix2pixHD appearance model with Everybody Dance Now's temporal smoothing
 target person. Poses are extracted from the video with the bundled BlazePose and cached in RUN_DIR/poses.npz
 (or given with --poses, e.g. the ground-truth poses of a synthetic target video). The last 15 % of the video
 is held out: RUN_DIR/validation.csv reports SSIM / PSNR on it at every checkpoint, RUN_DIR/samples/ has PNG
-grids (real | skeleton | generated), RUN_DIR/losses.csv and losses.png the losses.
+grids (real | skeleton | generated), RUN_DIR/losses.csv and losses.png the losses. With the warped prior (small,
+medium) the 10 % before it is not learnt from either: it scores every checkpoint (select_ssim), the prior alone
+included, and the model renders with the best, so training that makes the person worse is not used.
 
 Stops with a checkpoint when the run has trained --minutes in all (every call together) or --epochs, and on
 Ctrl-C or SIGTERM; --resume continues exactly where it stopped.
@@ -68,5 +70,7 @@ def run(args: argparse.Namespace) -> None:
 
     meta = train_video(**request.api_kwargs(), overrides=chosen_fields(preset_config, config, request, flags))
     val = meta.get("validation", {})
+    kept = f", renders with step {meta['best']['step']} (best on the selection frames)" if meta.get("best") else ""
     logger.info(f"saved {args.out}: epoch {meta['epoch']}, step {meta['step']}, "
-                f"held-out SSIM {val.get('ssim', float('nan')):.3f}, PSNR {val.get('psnr', float('nan')):.2f} dB")
+                f"held-out SSIM {val.get('ssim', float('nan')):.3f}, PSNR {val.get('psnr', float('nan')):.2f} dB"
+                f"{kept}")

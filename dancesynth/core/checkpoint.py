@@ -7,6 +7,8 @@ A run folder holds one current checkpoint, reached through the pointer file ``la
     RUN_DIR/ckpt-<step>-<id>/model.safetensors   the state dict (weights and buffers), nothing executable
     RUN_DIR/ckpt-<step>-<id>/training.pt         optional: optimizer and RNG states, data position; plain
                                                  tensors / dicts / lists, read with ``torch.load(weights_only=True)``
+    RUN_DIR/ckpt-<step>-<id>/best.safetensors    optional: the weights of an earlier step that validated best,
+                                                 which a trainer keeping the best checkpoint renders with
 
 A save writes a new checkpoint folder completely beside the current one (under a unique temporary name,
 renamed when complete), then switches to it with one atomic rename of ``latest.json``, and only then deletes
@@ -45,6 +47,7 @@ from dancesynth.core.fileio import PART_MARKER, atomic_path
 
 POINTER = "latest.json"
 WEIGHTS = "model.safetensors"
+BEST_WEIGHTS = "best.safetensors"
 TRAINING = "training.pt"
 LEGACY_WEIGHTS, LEGACY_TRAINING = "latest.safetensors", "latest.training.pt"
 _CHECKPOINT_DIR = re.compile(r"^ckpt-\d+-[0-9a-f]+$")
@@ -105,12 +108,15 @@ def has_checkpoint(run_dir: str | os.PathLike) -> bool:
 
 
 def save_checkpoint(run_dir: str | os.PathLike, model: nn.Module | dict[str, torch.Tensor], meta: dict[str, Any],
-                    training_state: dict[str, Any] | None = None) -> None:
-    """Make (model or state dict, ``meta``, ``training_state``) the current checkpoint of ``run_dir``, atomically.
+                    training_state: dict[str, Any] | None = None, best: dict[str, torch.Tensor] | None = None) -> None:
+    """Make (model or state dict, ``meta``, ``training_state``, ``best``) the current checkpoint of ``run_dir``,
+    atomically.
 
     ``meta`` must be JSON-serialisable and contain ``kind``; an integer ``step`` entry names the checkpoint
     folder. ``training_state`` may hold tensors, numbers, strings, lists, tuples and dicts (e.g.
-    ``optimizer.state_dict()``, :func:`capture_rng_state`). The run folder is created if needed.
+    ``optimizer.state_dict()``, :func:`capture_rng_state`). ``best``: the state dict of an earlier step that
+    validated better than the model's, read back with ``load_checkpoint(..., best=True)``. The run folder is
+    created if needed.
     """
     if "kind" not in meta:
         raise ValueError("checkpoint meta needs a 'kind' entry (e.g. 'stage1')")
@@ -123,6 +129,8 @@ def save_checkpoint(run_dir: str | os.PathLike, model: nn.Module | dict[str, tor
         tmp.mkdir()
         tensors = _plain_state_dict(model) if isinstance(model, nn.Module) else model
         _save_weights(tensors, tmp / WEIGHTS, {"save_id": save_id, "kind": str(meta["kind"])})
+        if best is not None:
+            _save_weights(best, tmp / BEST_WEIGHTS, {"save_id": save_id, "kind": str(meta["kind"])})
         if training_state is not None:
             # Serialised in memory and written by Python: torch reports a failed write (a full or read-only
             # disk) as a RuntimeError without the cause, Python's OSError names it.
@@ -227,8 +235,10 @@ def load_meta(run_dir: str | os.PathLike, expected_kind: str) -> dict[str, Any]:
     return meta
 
 
-def load_checkpoint(run_dir: str | os.PathLike, expected_kind: str) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:
-    """``(state_dict, meta)`` of the current checkpoint; tensors on CPU.
+def load_checkpoint(run_dir: str | os.PathLike, expected_kind: str,
+                    best: bool = False) -> tuple[dict[str, torch.Tensor], dict[str, Any]]:
+    """``(state_dict, meta)`` of the current checkpoint; tensors on CPU. With ``best``, the weights of the step that
+    validated best where the checkpoint holds them apart (``save_checkpoint(..., best=)``), else its own.
 
     Raises :class:`DancesynthError` when the folder is missing, is not a dancesynth run, is a run of another
     kind (e.g. an appearance model given where a pose model is expected) or is incomplete. A checkpoint
@@ -238,6 +248,8 @@ def load_checkpoint(run_dir: str | os.PathLike, expected_kind: str) -> tuple[dic
     while True:
         meta = load_meta(run_dir, expected_kind)
         path = checkpoint_files(run_dir, meta)[0]
+        if best and path.with_name(BEST_WEIGHTS).is_file() and path.name == WEIGHTS:
+            path = path.with_name(BEST_WEIGHTS)
         try:
             state = load_file(str(path))
             with safe_open(str(path), framework="pt") as f:

@@ -195,11 +195,12 @@ class RunFolder:
 
     # --- checkpoints ------------------------------------------------------------------------------------------
     def save(self, model: nn.Module, meta: dict[str, Any], optimizers: dict[str, torch.optim.Optimizer],
-             extra: dict[str, Any] | None = None) -> dict[str, Any]:
+             extra: dict[str, Any] | None = None, best: dict[str, torch.Tensor] | None = None) -> dict[str, Any]:
         """Checkpoint ``model`` with ``meta`` (JSON: ``kind`` and ``trained_seconds`` are added, ``step`` is
-        expected), the optimizer states, every process's RNG states, the metrics tables' lengths and the
-        trainer's ``extra`` state (tensors, numbers, strings, lists, dicts). Call it in every process; returns
-        the metadata saved."""
+        expected), the optimizer states, every process's RNG states, the metrics tables' lengths, the
+        trainer's ``extra`` state (tensors, numbers, strings, lists, dicts) and ``best``, the state dict of an
+        earlier step that validated better (:func:`dancesynth.core.checkpoint.save_checkpoint`). Call it in
+        every process; returns the metadata saved."""
         meta = {**meta, "kind": self.kind, "trained_seconds": round(self.trained_seconds, 1)}
         rng = ckpt.capture_rng_state()
         rngs: list[Any] = [rng]
@@ -209,7 +210,7 @@ class RunFolder:
         if self.writer:
             state = {"optimizers": {name: opt.state_dict() for name, opt in optimizers.items()}, "rng": rngs,
                      "rows": dict(self._rows), "extra": extra or {}}
-            ckpt.save_checkpoint(self.path, model, meta, state)
+            ckpt.save_checkpoint(self.path, model, meta, state, best)
         return meta
 
     def restore(self, model: nn.Module,

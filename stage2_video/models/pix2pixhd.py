@@ -63,6 +63,8 @@ class Pix2PixHDConfig:
         batch_size: consecutive-frame pairs per step.
         epochs_constant, epochs_decay: epochs at constant lr, then epochs with lr decaying linearly to 0.
         val_fraction: the last fraction of the video held out for validation.
+        select_fraction: the last fraction of the frames before those that is not learnt from but scores every
+            checkpoint, the warped prior alone (step 0) included: the model renders with the best (0: the latest).
     """
 
     width: int = 128
@@ -92,6 +94,7 @@ class Pix2PixHDConfig:
     epochs_constant: int = 100
     epochs_decay: int = 100
     val_fraction: float = 0.15
+    select_fraction: float = 0.0
 
     @property
     def adversarial(self) -> bool:
@@ -125,7 +128,7 @@ class Pix2PixHDConfig:
 # held-out PCK@0.1 after 10 min: 0.720 with mask and discriminators; 761 steps: 0.776 at lr 2e-4, 0.794 at 5e-5;
 # docs/methods/warped_prior.md).
 _WARPED = {"background": True, "blend": True, "prior": True, "residual": True, "lambda_mask": 0.0, "lambda_gan": 0.0,
-           "lambda_feat": 0.0, "lr": 5e-5}
+           "lambda_feat": 0.0, "lr": 5e-5, "select_fraction": 0.1}
 PRESETS: dict[str, Pix2PixHDConfig] = {
     # CPU: global generator only, trains in minutes on a short video; it repairs the warped person (docs/methods).
     "small": Pix2PixHDConfig(**_WARPED),

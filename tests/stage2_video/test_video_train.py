@@ -10,7 +10,8 @@ from dancesynth.core.draw import draw_pose
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import write_video
 from dancesynth.core.skeleton import PoseSequence
-from stage2_video.train import TrainOptions, train_video
+from stage2_video.render import load_appearance_model
+from stage2_video.train import TrainOptions, VideoTrainer, train_video
 
 
 def _rows(path):
@@ -60,7 +61,54 @@ def test_resume_is_exact(tiny_target, tiny_config, tmp_path):
     for k in a:
         assert torch.equal(a[k], b[k]), k
     assert [r["step"] for r in _rows(split / "losses.csv")] == [str(s) for s in range(1, 11)]
-    assert [r["step"] for r in _rows(split / "validation.csv")] == ["3", "10"]
+    # step 0: the warped prior alone, the first candidate for the best checkpoint
+    assert [r["step"] for r in _rows(split / "validation.csv")] == ["0", "3", "10"]
+    a, b = load_checkpoint(straight, "stage2", best=True), load_checkpoint(split, "stage2", best=True)
+    assert a[1]["best"] == b[1]["best"]
+    for k in a[0]:
+        assert torch.equal(a[0][k], b[0][k]), k
+
+
+def _scripted_selection(monkeypatch, scores):
+    """Make the trainer's validation report ``scores`` (by step) as its selection frames' SSIM."""
+    validate = VideoTrainer.validate
+
+    def scripted(self):
+        return {**validate(self), "select_ssim": scores[self.step]}
+
+    monkeypatch.setattr(VideoTrainer, "validate", scripted)
+
+
+def test_the_model_renders_with_the_checkpoint_that_scored_best_on_the_selection_frames(
+        tiny_target, tiny_config, tmp_path, monkeypatch):
+    video, poses = tiny_target
+    opts = dict(val_frames=2, sample_every=1000, checkpoint_every=3)
+    reference, run = tmp_path / "reference", tmp_path / "run"
+    train_video(video, reference, "small", TrainOptions(epochs=2, max_steps=3, **opts), poses=poses, device="cpu",
+                overrides=tiny_config)
+    _scripted_selection(monkeypatch, {0: 0.5, 3: 0.9, 6: 0.7, 9: 0.8, 10: 0.6})
+    meta = train_video(video, run, "small", TrainOptions(epochs=2, **opts), poses=poses, device="cpu",
+                       overrides=tiny_config)
+    assert meta["step"] == 10 and meta["best"] == {"step": 3, "ssim": 0.9}
+    kept = load_checkpoint(reference, "stage2")[0]
+    model = load_appearance_model(run, "cpu", optimize=False, precision="fp32")
+    rendered = model.generator.state_dict()
+    for k, v in rendered.items():
+        assert torch.equal(v, kept[f"generator.inner.{k}"]), k
+    # the latest weights still resume the run
+    assert not torch.equal(load_checkpoint(run, "stage2")[0]["generator.inner.head.1.weight"],
+                           kept["generator.inner.head.1.weight"])
+
+
+def test_training_that_scores_below_the_warp_alone_renders_the_warp(tiny_target, tiny_config, tmp_path, monkeypatch):
+    video, poses = tiny_target
+    _scripted_selection(monkeypatch, {0: 0.9, 3: 0.5, 5: 0.4})
+    run = tmp_path / "run"
+    meta = train_video(video, run, "small", TrainOptions(epochs=1, val_frames=2, sample_every=1000,
+                                                         checkpoint_every=3),
+                       poses=poses, device="cpu", overrides=tiny_config)
+    assert meta["step"] == 5 and meta["best"]["step"] == 0
+    assert load_appearance_model(run, "cpu").generator is None
 
 
 def test_bad_inputs_are_user_errors(tiny_target, tmp_path):
