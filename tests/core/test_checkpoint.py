@@ -108,6 +108,18 @@ def test_a_new_save_replaces_the_previous_checkpoint_folder(tmp_path):
     assert torch.equal(load_checkpoint(tmp_path, "stage1")[0]["0.weight"], model[0].weight)
 
 
+def test_the_best_weights_travel_with_their_checkpoint_and_the_next_save_drops_them(tmp_path):
+    model = _model()
+    best = {k: v.clone() for k, v in model.state_dict().items()}
+    with torch.no_grad():
+        model[0].weight.add_(1.0)
+    save_checkpoint(tmp_path, model, {"kind": "stage1", "step": 5}, best=best)
+    assert torch.equal(load_checkpoint(tmp_path, "stage1")[0]["0.weight"], model[0].weight)
+    assert torch.equal(load_checkpoint(tmp_path, "stage1", best=True)[0]["0.weight"], best["0.weight"])
+    save_checkpoint(tmp_path, model, {"kind": "stage1", "step": 6})  # the latest weights are the best again
+    assert torch.equal(load_checkpoint(tmp_path, "stage1", best=True)[0]["0.weight"], model[0].weight)
+
+
 def test_runs_saved_before_checkpoint_folders_still_load(tmp_path):
     """The earlier layout: latest.safetensors (+ latest.training.pt) beside latest.json, tied by save_id."""
     model = _model()
