@@ -107,10 +107,11 @@ def test_a_prior_model_painted_through_a_mask_still_loads_and_renders(tiny_targe
     video, poses = tiny_target
     run = tmp_path / "masked"
     train_video(video, run, "small", TrainOptions(epochs=1, max_steps=1, val_frames=2), poses=poses, device="cpu",
-                overrides={**tiny_config, "residual": False})
+                overrides={**tiny_config, "residual": False, "select_fraction": 0.0})
     meta = load_checkpoint(run, "stage2")[1]
-    # Its saved config as written before residual corrections existed.
-    update_meta(run, "stage2", {"config": {k: v for k, v in meta["config"].items() if k != "residual"}})
+    # Its saved config as written before residual corrections and selection frames existed.
+    update_meta(run, "stage2", {"config": {k: v for k, v in meta["config"].items()
+                                           if k not in ("residual", "select_fraction")}})
     model = load_appearance_model(run, "cpu")
     assert model.config.prior and not model.config.repairs and model.generator is not None
     frames = list(render_frames(model, PoseSequence.load(poses).slice_frames(0, 3)))
