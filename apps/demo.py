@@ -8,7 +8,6 @@ resolution (dance video, skeleton video, side-by-side) -> summary page with metr
 
 from __future__ import annotations
 
-import csv
 import json
 import logging
 import os
@@ -20,6 +19,7 @@ import numpy as np
 
 from apps.pipeline import dance
 from apps.requests import DanceRequest
+from dancesynth.core.checkpoint import load_meta
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.fileio import atomic_path
 from dancesynth.core.media import SONG_SAMPLE_RATE, load_song, read_frames
@@ -82,12 +82,6 @@ def _contact_sheet(video: Path, out: Path, count: int = 6) -> None:
                            axis=1)
     with atomic_path(out) as tmp:
         cv2.imwrite(str(tmp), cv2.cvtColor(strip, cv2.COLOR_RGB2BGR))
-
-
-def _last_row(path: Path) -> dict[str, str]:
-    with open(path) as f:
-        rows = list(csv.DictReader(f))
-    return rows[-1] if rows else {}
 
 
 def run_demo(out: str | os.PathLike = "demo_output", minutes: float = 15.0, seed: int = 0, device: str = "auto",
@@ -167,7 +161,9 @@ def _summary(out: Path, dataset: DanceDataset, clip: Clip, video_run: Path, timi
     rows = {f"generated ({model.meta['method']}, shipped model)": dance_metrics(generated, beats),
             "real dance": dance_metrics(real, beats)}
     _contact_sheet(out / "side_by_side.mp4", out / "frames.png")
-    val = _last_row(video_run / "validation.csv") if (video_run / "validation.csv").is_file() else {}
+    meta = load_meta(video_run, "stage2")
+    # The held-out scores of the weights the dance was rendered with (the kept checkpoint where training kept one).
+    val = meta.get("best") or {**(meta.get("validation") or {}), "step": meta.get("step")}
     lines = [
         "# dancesynth demo", "",
         f"Held-out song `{clip.id}` (style {clip.style}), first {seconds:g} s, seed {seed}, device {device}.", "",
@@ -182,8 +178,9 @@ def _summary(out: Path, dataset: DanceDataset, clip: Clip, video_run: Path, timi
     lines += ["", "Beat coverage = kinematic beats / music beats; hit rate = share of kinematic beats within "
               "±2 frames of a music beat; align score = Bailando's BAS (σ = 50 ms). See the README's metrics section.",
               "", "## Stage 2: held-out frames of the target video", ""]
-    if val:
-        lines += [f"SSIM {float(val['ssim']):.3f}, PSNR {float(val['psnr']):.2f} dB at step {val['step']}."]
+    if "ssim" in val:
+        lines += [f"SSIM {float(val['ssim']):.3f}, PSNR {float(val['psnr']):.2f} dB at step {val['step']}, the "
+                  "checkpoint the dance was rendered with."]
     lines += ["", "Training curve: [appearance model](runs/video/losses.png)", "",
               "## Time per step", "", "| step | seconds |", "|---|---|"]
     lines += [f"| {k} | {v:.0f} |" for k, v in timings.items()]

@@ -13,7 +13,8 @@ users of the product do not have. The corpus (``--corpus``, default ``~/.cache/d
 
 Sources, none of them a test-half piece or made from one:
 
-* MMA grooves (``mma``'s library, GPL-2.0+) at random tempi (log-uniform 60-190 BPM): a song of about
+* MMA grooves (``mma``'s library, GPL-2.0+) at random tempi (log-uniform 60-190 BPM, and 80 more at 45-95 BPM):
+  a song of about
   ``_MMA_SECONDS`` s of chords in one groove, written to MIDI by MMA (the benchmark's :func:`mma_song`), rendered by
   fluidsynth with a random gain, reverb room and level. Kept when its MIDI time signatures are x/4 with x in 2-4
   (the grid is then exact; MMA writes 6/8 loosely). Library files a test piece plays from are left out, grooves and
@@ -56,6 +57,9 @@ DEFAULT_CORPUS = Path.home() / ".cache" / "dancesynth" / "beat-train"
 _MMA_SONGS = 240
 _MMA_SECONDS = 30.0
 _MMA_BPM = (60.0, 190.0)
+# Slow songs went to double tempo or 3:2 with the first corpus alone (test half: slow F 0.52).
+_MMA_SLOW_SONGS = 80
+_MMA_SLOW_BPM = (45.0, 95.0)
 _SEED = 0
 
 
@@ -101,23 +105,17 @@ def _midi_item(out: Path, mid: Path, tmp: Path, rng: np.random.Generator, max_se
     _save(out, samples, beats, downbeats)
 
 
-def build_corpus(cache: Path, corpus: Path) -> list[Path]:
-    """Render every corpus song not yet in ``corpus`` and return all of their files."""
-    corpus.mkdir(parents=True, exist_ok=True)
+def _groove_songs(cache: Path, corpus: Path, grooves: list[tuple[Path, str]], rng: np.random.Generator, count: int,
+                  bpm_range: tuple[float, float], prefix: str) -> list[Path]:
+    """``count`` songs of grooves drawn from ``grooves`` (library file, name) at log-uniform tempi in ``bpm_range``,
+    rendered into ``corpus`` as ``<prefix>-<library>-<groove>.npz`` where missing; the files of those in 2-4/4."""
     pkgs = cache / "pkgs"
-    rng = np.random.default_rng(_SEED)
-    test_libs = _test_libraries()
-    test_grooves = {g.lower() for lib in test_libs for g in _groove_names(pkgs / "mma" / lib)}
-    libraries = sorted(p for p in (pkgs / "mma" / _MMA_LIB).glob("*/*.mma")
-                       if str(p.relative_to(pkgs / "mma")) not in test_libs)
-    grooves = [(lib, g) for lib in libraries for g in _groove_names(lib)]
-    picks = rng.choice(len(grooves), size=min(_MMA_SONGS, len(grooves)), replace=False)
     files = []
-    for n in sorted(picks):
+    for n in sorted(rng.choice(len(grooves), size=min(count, len(grooves)), replace=False)):
         lib, groove = grooves[n]
-        bpm = float(np.exp(rng.uniform(*np.log(_MMA_BPM))))
+        bpm = float(np.exp(rng.uniform(*np.log(bpm_range))))
         gain_options = _render_options(rng)
-        out = corpus / f"mma-{lib.parent.name}-{groove}.npz"
+        out = corpus / f"{prefix}-{lib.parent.name}-{groove}.npz"
         if not out.exists():
             piece = Piece(out.stem, (), "mma", str(lib.relative_to(pkgs / "mma")), "GPL-2.0-or-later", "mma",
                           groove, round(bpm, 1))
@@ -133,6 +131,23 @@ def build_corpus(cache: Path, corpus: Path) -> list[Path]:
                 beats, downbeats, _ = midi_grid(mid)
                 _save(out, samples, beats, downbeats)
         files.append(out)
+    return files
+
+
+def build_corpus(cache: Path, corpus: Path) -> list[Path]:
+    """Render every corpus song not yet in ``corpus`` and return all of their files."""
+    corpus.mkdir(parents=True, exist_ok=True)
+    pkgs = cache / "pkgs"
+    rng = np.random.default_rng(_SEED)
+    test_libs = _test_libraries()
+    test_grooves = {g.lower() for lib in test_libs for g in _groove_names(pkgs / "mma" / lib)}
+    libraries = sorted(p for p in (pkgs / "mma" / _MMA_LIB).glob("*/*.mma")
+                       if str(p.relative_to(pkgs / "mma")) not in test_libs)
+    grooves = [(lib, g) for lib in libraries for g in _groove_names(lib)]
+    files = _groove_songs(cache, corpus, grooves, rng, _MMA_SONGS, _MMA_BPM, "mma")
+    # Slow songs again, from their own seed so the pass above draws what it drew before.
+    files += _groove_songs(cache, corpus, grooves, np.random.default_rng(_SEED + 1), _MMA_SLOW_SONGS, _MMA_SLOW_BPM,
+                           "mma-slow")
     benchmark_files = {p.path for p in PIECES}
     midi_songs: list[tuple[Path, Path]] = []  # (corpus file, MIDI file) of the songs rendered as they are
     for mma in sorted((pkgs / "mma" / _MMA_EXAMPLES).glob("*/*.mma")):

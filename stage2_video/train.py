@@ -108,7 +108,7 @@ class VideoTrainer:
         if not len(self.train_set):
             raise DancesynthError("The person's body is found in too few consecutive frames of the target video to "
                                   "learn from; use a video where one person stays fully visible.")
-        # {"step", "ssim"} of the checkpoint that scored best on the selection frames, and its weights (CPU).
+        # The step that scored best on the selection frames with its validation scores, and its weights (CPU).
         self.best: dict | None = None
         self.best_weights: dict[str, torch.Tensor] | None = None
         self._validated: tuple[int, dict[str, float]] | None = None
@@ -283,8 +283,8 @@ class VideoTrainer:
     def _track_best(self, scores: dict[str, float]) -> None:
         """Remember this step's weights when they score best so far on the selection frames."""
         score = scores.get("select_ssim", math.nan)
-        if not math.isnan(score) and (self.best is None or score > self.best["ssim"]):
-            self.best = {"step": self.step, "ssim": score}
+        if not math.isnan(score) and (self.best is None or score > self.best["select_ssim"]):
+            self.best = {"step": self.step, **scores}
             self.best_weights = {k: v.detach().to("cpu", copy=True) for k, v in self.model.state_dict().items()}
 
     @torch.no_grad()
@@ -348,7 +348,7 @@ class VideoTrainer:
         """Continue from the run folder's latest checkpoint exactly where it stopped."""
         meta, extra = self.folder.restore(self.model, self.optimizers())
         if meta.get("best") is not None:
-            self.best = {"step": int(meta["best"]["step"]), "ssim": float(meta["best"]["ssim"])}
+            self.best = dict(meta["best"])
             self.best_weights = load_checkpoint(self.folder.path, KIND, best=True)[0]
         # A run resumed in fp16 continues with its loss scale; in another precision there is none to restore.
         if self.scaler.is_enabled() and extra.get("scaler"):

@@ -512,9 +512,11 @@ class WebApp:
         meta = load_meta(folder, "stage2")
         _read_losses(folder / LOSSES)
         video = _source_video(folder) or meta.get("video") or ""
-        validation, config = meta.get("validation") or {}, meta["config"]
+        # The held-out scores of the weights it renders with: the kept checkpoint's where training kept one.
+        validation, config = meta.get("best") or meta.get("validation") or {}, meta["config"]
         numbers = {key: _finite(value, key) for key, value in (
-            ("ssim", validation.get("ssim")), ("psnr", validation.get("psnr")), ("step", meta.get("step")),
+            ("ssim", validation.get("ssim")), ("psnr", validation.get("psnr")),
+            ("step", (meta.get("best") or meta).get("step")),
             ("width", config.get("width")), ("height", config.get("height")))}
         if not math.isfinite(entry.trained_seconds):
             raise ValueError(f"its trained_seconds is {entry.trained_seconds}")

@@ -233,6 +233,16 @@ def test_a_damaged_cache_entry_is_listed_as_damaged_beside_the_others(app, damag
         assert status == 400 and says in answer["error"]
 
 
+def test_a_model_is_listed_with_the_scores_of_the_checkpoint_it_renders_with(app):
+    cache = app.state.web.cache
+    kept = _entry(cache, "k")
+    best = {"step": 12, "ssim": 0.7, "psnr": 24.0, "select_ssim": 0.8}
+    (kept / "latest.json").write_text(json.dumps({**LATEST, "best": best}))
+    status, models, _ = call(app, "GET", "/api/models", PAGE)
+    listed = next(m for m in models if m["name"] == kept.name)
+    assert status == 200 and (listed["step"], listed["ssim"], listed["psnr"]) == (12, 0.7, 24.0)
+
+
 def test_a_damaged_latest_json_is_listed_as_damaged(app):
     cache = app.state.web.cache
     _entry(cache, "a")
