@@ -59,8 +59,7 @@ def test_shipped_model_dances_an_unheard_song_to_its_end_without_freezing(tmp_pa
 
 def test_shipped_model_dances_on_the_true_beats_of_a_real_recording():
     # Rock at 135 BPM, beats from its Frets-on-Fire chart; generation tracks its own beats and retimes onto them.
-    # With the DSP tracker, which keeps this excerpt's phase: the learned one slips onto the off-beats after 17 s
-    # (docs/methods/beat_tracking.md), which would test the tracker, not the retiming.
+    # With one tracker named, so the bounds test the retiming, not a change of the default tracker.
     song = Path(__file__).parents[1] / "data" / "real_song" / "escape_from_chaosland_40-65s"
     samples = load_song(song.with_suffix(".ogg"), SONG_SAMPLE_RATE)
     true = np.asarray(json.loads(song.with_suffix(".beats.json").read_text())["beats"])
