@@ -33,6 +33,7 @@ from stage1_pose.pretrained import DEFAULT_POSE_MODEL, TRAINING_DATA_SEED
 from stage2_video.model_cache import train_for
 from stage2_video.presets import resolve_preset
 from stage2_video.synthetic_person import appearance_preset, write_person_video
+from stage2_video.training_data import rendered_checkpoint
 
 logger = logging.getLogger(__name__)
 
@@ -162,8 +163,7 @@ def _summary(out: Path, dataset: DanceDataset, clip: Clip, video_run: Path, timi
             "real dance": dance_metrics(real, beats)}
     _contact_sheet(out / "side_by_side.mp4", out / "frames.png")
     meta = load_meta(video_run, "stage2")
-    # The held-out scores of the weights the dance was rendered with (the kept checkpoint where training kept one).
-    val = meta.get("best") or {**(meta.get("validation") or {}), "step": meta.get("step")}
+    val = rendered_checkpoint(meta)
     lines = [
         "# dancesynth demo", "",
         f"Held-out song `{clip.id}` (style {clip.style}), first {seconds:g} s, seed {seed}, device {device}.", "",

@@ -58,7 +58,13 @@ from stage2_video.prior import PriorRenderer
 from stage2_video.quality import pck, psnr, ssim
 from stage2_video.render import load_appearance_model, render_layers
 from stage2_video.train import KIND, TrainOptions, train_video
-from stage2_video.training_data import POSES_FILE, load_or_extract_poses, prior_images, split_ranges
+from stage2_video.training_data import (
+    POSES_FILE,
+    load_or_extract_poses,
+    prior_images,
+    rendered_checkpoint,
+    split_ranges,
+)
 
 CLIPS = {
     "dancer": ("musicalgestures==1.32.0", "musicalgestures-*.whl", {
@@ -253,7 +259,7 @@ def run(args: argparse.Namespace) -> None:
                                                                                  held_out)
             meta = load_meta(run_dir, KIND)
             results[row].minutes, results[row].steps = meta["trained_seconds"] / 60, meta["step"]
-            results[row].kept = int((meta.get("best") or meta)["step"])
+            results[row].kept = int(rendered_checkpoint(meta)["step"])
             results[row].warp_ms = warp_ms
             if "real" in args.rows and "real" not in results:
                 results["real"] = score("real", reals, reals, commanded, dancing)

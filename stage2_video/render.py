@@ -59,6 +59,7 @@ from stage2_video.training_data import (
     frame_bank,
     frames_file,
     prior_images,
+    rendered_checkpoint,
     split_ranges,
     to_image,
     to_tensor,
@@ -267,8 +268,7 @@ def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", opti
         lengths = np.asarray(meta["bone_lengths"], np.float64) if meta.get("bone_lengths") is not None else None
         if lengths is not None and lengths.shape != (len(BODY25_LIMBS),):
             raise ValueError(f"bone_lengths has shape {lengths.shape}, not [{len(BODY25_LIMBS)}]")
-        # The step rendered: the one that scored best on the selection frames where the trainer kept it.
-        untrained = int((meta.get("best") or meta).get("step", 1)) == 0
+        untrained = int(rendered_checkpoint(meta).get("step", 1)) == 0
         bank = _bank(run_dir, config, framing) if config.prior else None
     # A prior model's network gives RGB and mask, painted over the prior at the output size (step_with_prior).
     generator = model.generator.inner if config.prior else model.generator

@@ -215,6 +215,12 @@ def selection_split(train: range, fraction: float) -> tuple[range, range]:
     return range(train.start, train.stop - n_select), range(train.stop - n_select, train.stop)
 
 
+def rendered_checkpoint(meta: dict) -> dict:
+    """The step an appearance model's checkpoint ``meta`` renders with and that step's held-out ``ssim`` / ``psnr``
+    (where it was validated): meta ``best`` where training kept an earlier step, else the latest step."""
+    return meta.get("best") or {**(meta.get("validation") or {}), "step": meta.get("step")}
+
+
 def frame_bank(frames: np.ndarray, masks: np.ndarray, poses: PoseSequence, bank_framing: VideoFraming,
                members: range) -> FrameBank:
     """The :class:`FrameBank` of a target: its ``[T, H, W, 3]`` frames and ``[T, H, W]`` person masks framed by

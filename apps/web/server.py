@@ -505,6 +505,7 @@ class WebApp:
         when a file of it is damaged. Numbers that are not finite (a diverged training's SSIM) are None."""
         from dancesynth.core.checkpoint import load_meta
         from stage2_video.model_cache import read_entry
+        from stage2_video.training_data import rendered_checkpoint
 
         entry = read_entry(folder)
         if entry is None:
@@ -512,11 +513,9 @@ class WebApp:
         meta = load_meta(folder, "stage2")
         _read_losses(folder / LOSSES)
         video = _source_video(folder) or meta.get("video") or ""
-        # The held-out scores of the weights it renders with: the kept checkpoint's where training kept one.
-        validation, config = meta.get("best") or meta.get("validation") or {}, meta["config"]
+        rendered, config = rendered_checkpoint(meta), meta["config"]
         numbers = {key: _finite(value, key) for key, value in (
-            ("ssim", validation.get("ssim")), ("psnr", validation.get("psnr")),
-            ("step", (meta.get("best") or meta).get("step")),
+            ("ssim", rendered.get("ssim")), ("psnr", rendered.get("psnr")), ("step", rendered.get("step")),
             ("width", config.get("width")), ("height", config.get("height")))}
         if not math.isfinite(entry.trained_seconds):
             raise ValueError(f"its trained_seconds is {entry.trained_seconds}")
