@@ -30,6 +30,8 @@ Everything is in the pixels of a bank image (the model's framing at ``scale`` ti
 from __future__ import annotations
 
 import dataclasses
+import functools
+import math
 from collections import OrderedDict
 from dataclasses import dataclass
 
@@ -325,32 +327,33 @@ def fill_torso(image: np.ndarray, labels: np.ndarray, keypoints: np.ndarray) -> 
 
 
 def similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-    """``[2, 3]`` least-squares similarity (rotation, uniform scale, translation; Umeyama 1991) taking ``[n, 2]``
-    points ``src`` onto ``dst`` (n >= 2)."""
+    """``[2, 3]`` least-squares similarity (rotation, uniform scale, translation) taking ``[n, 2]`` points ``src``
+    onto ``dst`` (n >= 2): Umeyama's (1991) solution, which in the plane has this closed form."""
     mu_s, mu_d = src.mean(0), dst.mean(0)
     s, d = src - mu_s, dst - mu_d
-    cov = d.T @ s / len(src)
-    u, sigma, vt = np.linalg.svd(cov)
-    sign = np.diag([1.0, np.sign(np.linalg.det(u @ vt)) or 1.0])
-    rotation = u @ sign @ vt
-    variance = (s ** 2).sum() / len(src)
-    scale = float(np.trace(np.diag(sigma) @ sign) / max(variance, 1e-9))
-    linear = scale * rotation
-    return np.c_[linear, mu_d - linear @ mu_s]
+    variance = max(float((s ** 2).sum()), 1e-9 * len(src))
+    cos = float((s * d).sum()) / variance
+    sin = float((s[:, 0] * d[:, 1] - s[:, 1] * d[:, 0]).sum()) / variance
+    x, y = float(mu_d[0] - cos * mu_s[0] + sin * mu_s[1]), float(mu_d[1] - sin * mu_s[0] - cos * mu_s[1])
+    return np.array([[cos, -sin, x], [sin, cos, y]])
 
 
 def bone_affine(a: np.ndarray, b: np.ndarray, a2: np.ndarray, b2: np.ndarray, across: float) -> np.ndarray:
     """``[2, 3]`` affine taking segment ``a -> b`` onto ``a2 -> b2``: rotated with it, stretched along it to its
     length (at most ``MAX_STRETCH`` x ``across``) and scaled by ``across`` across it; ``a`` lands on ``a2``."""
-    u, u2 = b - a, b2 - a2
-    length, length2 = float(np.linalg.norm(u)), float(np.linalg.norm(u2))
+    # In plain floats: a warp makes dozens of these, and numpy's per-call cost on 2-vectors dominated it.
+    ux, uy, vx, vy = float(b[0] - a[0]), float(b[1] - a[1]), float(b2[0] - a2[0]), float(b2[1] - a2[1])
+    length, length2 = math.hypot(ux, uy), math.hypot(vx, vy)
     if length < 1e-6 or length2 < 1e-6:
-        return np.c_[across * np.eye(2), a2 - across * a]
-    u, u2 = u / length, u2 / length2
-    along = min(length2 / length, MAX_STRETCH * across)
-    frame, frame2 = np.array([u, [-u[1], u[0]]]).T, np.array([u2, [-u2[1], u2[0]]]).T
-    linear = frame2 @ np.diag([along, across]) @ frame.T
-    return np.c_[linear, a2 - linear @ a]
+        l00, l01, l10, l11 = across, 0.0, 0.0, across
+    else:
+        ux, uy, vx, vy = ux / length, uy / length, vx / length2, vy / length2
+        along = min(length2 / length, MAX_STRETCH * across)
+        # R(v) @ diag(along, across) @ R(u).T, R(w) the rotation taking the x axis onto w
+        l00, l01 = along * vx * ux + across * vy * uy, along * vx * uy - across * vy * ux
+        l10, l11 = along * vy * ux - across * vx * uy, along * vy * uy + across * vx * ux
+    ax, ay = float(a[0]), float(a[1])
+    return np.array([[l00, l01, float(a2[0]) - l00 * ax - l01 * ay], [l10, l11, float(a2[1]) - l10 * ax - l11 * ay]])
 
 
 def part_transform(part: Part, src: np.ndarray, dst: np.ndarray, torso_fit: np.ndarray | None) -> np.ndarray | None:
@@ -361,9 +364,9 @@ def part_transform(part: Part, src: np.ndarray, dst: np.ndarray, torso_fit: np.n
     if part.bone is None:
         return torso_fit
     a, b = part.bone
-    if not ((src[[a, b], 2] >= MIN_CONFIDENCE).all() and (dst[[a, b], 2] >= MIN_CONFIDENCE).all()):
+    if min(src[a, 2], src[b, 2], dst[a, 2], dst[b, 2]) < MIN_CONFIDENCE:
         return None
-    scale = float(np.sqrt(abs(np.linalg.det(torso_fit[:, :2]))))
+    scale = math.hypot(torso_fit[0, 0], torso_fit[1, 0])  # a similarity's first column: scale times a unit vector
     if part.rigid:  # a similarity about the child joint, turned with the bone
         bone, bone2 = src[b, :2] - src[a, :2], dst[b, :2] - dst[a, :2]
         return bone_affine(src[b, :2], src[b, :2] + bone, dst[b, :2], dst[b, :2] + _turned(bone, bone2, scale), scale)
@@ -372,8 +375,8 @@ def part_transform(part: Part, src: np.ndarray, dst: np.ndarray, torso_fit: np.n
 
 def _turned(vector: np.ndarray, direction: np.ndarray, scale: float) -> np.ndarray:
     """``vector`` scaled by ``scale`` and turned to point along ``direction``."""
-    norm = max(float(np.linalg.norm(direction)), 1e-6)
-    return direction / norm * float(np.linalg.norm(vector)) * scale
+    norm = max(math.hypot(direction[0], direction[1]), 1e-6)
+    return direction / norm * (math.hypot(vector[0], vector[1]) * scale)
 
 
 def torso_similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
@@ -396,6 +399,7 @@ class Source:
     labels: np.ndarray
     torso: np.ndarray
     keypoints: np.ndarray
+    layers: dict[int, tuple[int, int, np.ndarray] | None] = dataclasses.field(default_factory=dict, repr=False)
 
     def region(self, part: int) -> np.ndarray:
         """``[H, W]`` bool: the pixels of part ``part``, grown by :data:`OVERLAP_PIXELS` over the person."""
@@ -405,6 +409,21 @@ class Source:
         kernel = np.ones((2 * OVERLAP_PIXELS + 1,) * 2, np.uint8)
         grown = cv2.dilate(inside.astype(np.uint8), kernel) > 0
         return inside | (grown & ((self.labels != NO_PART) | self.torso))
+
+    def layer(self, part: int) -> tuple[int, int, np.ndarray] | None:
+        """Part ``part`` cut out of its box, cached (every pose warped from this frame moves the same cut):
+        ``(x0, y0, [h, w, 4] uint8)`` with colour premultiplied by alpha and alpha 0 or 255, ``(x0, y0)`` the box's
+        top-left corner in the source; None where the part has no pixels."""
+        if part not in self.layers:
+            inside = self.region(part).astype(np.uint8)
+            x0, y0, w, h = cv2.boundingRect(inside)
+            cut = None
+            if w and h:
+                inside = inside[y0:y0 + h, x0:x0 + w, None]
+                image = self.torso_image if part == TORSO else self.image
+                cut = (x0, y0, np.concatenate([image[y0:y0 + h, x0:x0 + w] * inside, inside * 255], axis=2))
+            self.layers[part] = cut
+        return self.layers[part]
 
 
 def warp_parts(sources: dict[str, Source], target: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
@@ -427,15 +446,11 @@ def warp_parts(sources: dict[str, Source], target: np.ndarray, size: tuple[int, 
         m = part_transform(part, source.keypoints, target, fits[part.group])
         if m is None:
             continue
-        inside = source.region(i)
-        if not inside.any():
+        cut = source.layer(i)
+        if cut is None:
             continue
-        ys, xs = np.nonzero(inside)
-        y0, y1, x0, x1 = ys.min(), ys.max() + 1, xs.min(), xs.max() + 1
-        layer = np.empty((y1 - y0, x1 - x0, 4), np.float32)
-        layer[..., 3] = inside[y0:y1, x0:x1]
-        image = source.torso_image if i == TORSO else source.image
-        layer[..., :3] = image[y0:y1, x0:x1] * layer[..., 3:]
+        x0, y0, layer = cut
+        x1, y1 = x0 + layer.shape[1], y0 + layer.shape[0]
         m = m.copy()
         m[:, 2] += m[:, :2] @ (x0, y0)  # the layer's origin is (x0, y0) of the source
         # Only the destination box the layer can reach is warped.
@@ -446,10 +461,15 @@ def warp_parts(sources: dict[str, Source], target: np.ndarray, size: tuple[int, 
             continue
         m[:, 2] -= (dx0, dy0)
         moved = cv2.warpAffine(layer, m, (dx1 - dx0, dy1 - dy0), flags=cv2.INTER_LINEAR,
-                               borderMode=cv2.BORDER_CONSTANT, borderValue=0)
-        a = moved[..., 3:]
-        colour[dy0:dy1, dx0:dx1] = moved[..., :3] + (1 - a) * colour[dy0:dy1, dx0:dx1]
-        alpha[dy0:dy1, dx0:dx1] = a[..., 0] + (1 - a[..., 0]) * alpha[dy0:dy1, dx0:dx1]
+                               borderMode=cv2.BORDER_CONSTANT, borderValue=0).astype(np.float32)
+        a = moved[..., 3] * (1 / 255)
+        under = 1 - a
+        # In place over the box: colour = moved + (1 - a) * colour, alpha = a + (1 - a) * alpha.
+        colour_box, alpha_box = colour[dy0:dy1, dx0:dx1], alpha[dy0:dy1, dx0:dx1]
+        colour_box *= under[..., None]
+        colour_box += moved[..., :3]
+        alpha_box *= under
+        alpha_box += a
     return colour, alpha
 
 
@@ -462,11 +482,16 @@ class FrameBank:
         keypoints: ``[T, 25, 3]`` the frames' poses in bank pixels.
         members: frame indices the bank may return (training frames with a usable pose and a mask).
         cache_size: source frames kept cut into parts (cutting costs a few milliseconds).
+        candidates: how many retrieved frames make one prior (odd): the per-pixel median of their warps
+            (:class:`PriorRenderer`).
     """
 
     def __init__(self, frames: np.ndarray, masks: np.ndarray, keypoints: np.ndarray, members: np.ndarray,
-                 cache_size: int = 512) -> None:
+                 cache_size: int = 512, candidates: int = 1) -> None:
+        if candidates < 1 or candidates % 2 == 0:
+            raise ValueError(f"the prior's candidates must be an odd count, got {candidates}")
         self.frames, self.masks = frames, masks
+        self.candidates = candidates
         self.keypoints = np.asarray(keypoints, np.float32)
         self.members = np.asarray(members, np.int64)
         self.size = (frames.shape[2], frames.shape[1])
@@ -501,25 +526,33 @@ class FrameBank:
         the frames farthest from its centre are allowed); ``previous``: last choices, kept while within
         :data:`HYSTERESIS` of the best.
         """
+        return self.choices(query, 1, exclude, previous)[0]
+
+    def choices(self, query: np.ndarray, count: int, exclude: tuple[int, int] | None = None,
+                previous: dict[str, int] | None = None) -> list[dict[str, int]]:
+        """Up to ``count`` choices of a bank frame per group for one ``[25, 3]`` pose (bank pixels): the first is
+        :meth:`retrieve`'s (``exclude`` and ``previous`` as there), the k-th next takes each group's k-th nearest
+        other frame (fewer when fewer frames are allowed)."""
         costs = group_costs(self.described, query)
         occlusion = occlusion_costs(self.overlaps, query)
-        costs = {g: cost + occlusion[g] for g, cost in costs.items()}
         allowed = np.ones(len(self.members), bool)
         if exclude is not None:
             allowed = (self.members < exclude[0]) | (self.members >= exclude[1])
             if not allowed.any():  # a bank shorter than the window: keep the farthest frames
                 distance = np.abs(self.members - (exclude[0] + exclude[1] - 1) / 2)
                 allowed = distance == distance.max()
-        choice = {}
+        count = min(count, int(allowed.sum()))
+        ranked = {}
         for group, cost in costs.items():
-            cost = np.where(allowed, cost, np.inf)
-            best = int(cost.argmin())
+            cost = np.where(allowed, cost + occlusion[group], np.inf)
+            nearest = np.argsort(cost, kind="stable")[:count]
+            best = int(nearest[0])
             if previous and group in previous:
                 kept = np.flatnonzero(self.members == previous[group])
                 if len(kept) and cost[kept[0]] <= cost[best] + HYSTERESIS:
                     best = int(kept[0])
-            choice[group] = int(self.members[best])
-        return choice
+            ranked[group] = [best] + [int(i) for i in nearest if i != best][:count - 1]
+        return [{g: int(self.members[r[k]]) for g, r in ranked.items()} for k in range(count)]
 
     def warp(self, choice: dict[str, int], target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:func:`warp_parts` of the chosen frames onto ``target`` (``[25, 3]`` bank pixels)."""
@@ -528,6 +561,10 @@ class FrameBank:
 
 class PriorRenderer:
     """Warped priors for a sequence of poses, retrieval kept steady from one pose to the next.
+
+    Each prior is the per-pixel median of the warps of the bank's ``candidates`` nearest choices
+    (:meth:`FrameBank.choices`), each over the plate: where the nearest frames agree the median is as sharp as one
+    of them, and a part that only one of them gets wrong (a hand cut from the hip, a sleeve's edge) drops out.
 
     ``exclude_frames``: frames within this many of a frame being learnt are not retrieved for it (training).
     """
@@ -544,10 +581,36 @@ class PriorRenderer:
         exclude = None
         if frame is not None and self.exclude_frames is not None:
             exclude = (frame - self.exclude_frames, frame + self.exclude_frames + 1)
-        self.previous = self.bank.retrieve(target, exclude, self.previous)
-        colour, alpha = self.bank.warp(self.previous, target)
-        base = colour + (1 - alpha[..., None]) * plate_crop
-        return np.concatenate([np.clip(base + 0.5, 0, 255), alpha[..., None] * 255 + 0.5], axis=2).astype(np.uint8)
+        chosen = self.bank.choices(target, self.bank.candidates, exclude, self.previous)
+        self.previous = chosen[0]
+        warps = [self.bank.warp(choice, target) for choice in chosen]
+        prior = np.empty(plate_crop.shape[:2] + (4,), np.uint8)
+        prior[..., :3], prior[..., 3] = plate_crop, 0
+        # Only the box some warp touched differs from the plate.
+        rows = np.flatnonzero(np.any([alpha.any(1) for _, alpha in warps], axis=0))
+        cols = np.flatnonzero(np.any([alpha.any(0) for _, alpha in warps], axis=0))
+        if len(rows):
+            box = np.s_[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
+            layers = np.empty((len(warps), rows[-1] + 1 - rows[0], cols[-1] + 1 - cols[0], 4), np.float32)
+            for layer, (colour, alpha) in zip(layers, warps):
+                layer[..., :3] = plate_crop[box]
+                layer[..., :3] *= 1 - alpha[box][..., None]
+                layer[..., :3] += colour[box]
+                layer[..., 3] = alpha[box] * 255
+            prior[box] = np.clip(median(list(layers)) + 0.5, 0, 255).astype(np.uint8)
+        return prior
+
+
+def median(images: list[np.ndarray]) -> np.ndarray:
+    """The per-element median of an odd number of same-shape arrays (by min/max passes: ``np.median`` over a new
+    axis is several times slower on images)."""
+    rows = list(images)
+    # Each bubble pass carries the largest left to the end and drops it; the median is the largest of the low half.
+    while len(rows) > (len(images) + 1) // 2:
+        for i in range(len(rows) - 1):
+            rows[i], rows[i + 1] = np.minimum(rows[i], rows[i + 1]), np.maximum(rows[i], rows[i + 1])
+        rows.pop()
+    return functools.reduce(np.maximum, rows)
 
 
 def bank_keypoints(keypoints: np.ndarray, framings: list[Framing]) -> np.ndarray:

@@ -241,7 +241,8 @@ def _bank(run_dir: Path, config: Pix2PixHDConfig, framing: VideoFraming) -> Fram
     frames, masks = np.load(paths[0], mmap_mode="r"), np.load(paths[1], mmap_mode="r")
     if len(frames) != len(poses) or len(masks) != len(poses):
         raise ValueError(f"the frame bank holds {len(frames)} frames and {len(masks)} masks for {len(poses)} poses")
-    return frame_bank(frames, masks, poses, bank_framing, split_ranges(len(poses), config.val_fraction)[0])
+    return frame_bank(frames, masks, poses, bank_framing, split_ranges(len(poses), config.val_fraction)[0],
+                      config.prior_candidates)
 
 
 def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", optimize: bool = True,

@@ -415,7 +415,8 @@ def video_trainer(video: str | os.PathLike, run_dir: str | os.PathLike, preset_n
         run.barrier()
     bank = None
     if config.prior:
-        bank = frame_bank(bank_frames, masks, seq, bank_framing, split_ranges(len(seq), config.val_fraction)[0])
+        bank = frame_bank(bank_frames, masks, seq, bank_framing, split_ranges(len(seq), config.val_fraction)[0],
+                          config.prior_candidates)
     target = TargetVideo(frames, seq, framing, plate if config.background else None, bank, config.prior_scale)
     trainer = VideoTrainer(config, target, run, dev, build_vgg_loss(vgg_weights),
                       options, str(video), dtype)

@@ -222,16 +222,18 @@ def rendered_checkpoint(meta: dict) -> dict:
 
 
 def frame_bank(frames: np.ndarray, masks: np.ndarray, poses: PoseSequence, bank_framing: VideoFraming,
-               members: range) -> FrameBank:
+               members: range, candidates: int = 1) -> FrameBank:
     """The :class:`FrameBank` of a target: its ``[T, H, W, 3]`` frames and ``[T, H, W]`` person masks framed by
     ``bank_framing`` (the model's framing at the prior's scale), holding the frames of ``members`` (the training
-    range) whose pose is usable and whose mask is not empty."""
+    range) whose pose is usable and whose mask is not empty; ``candidates``: frames per prior
+    (:class:`FrameBank`)."""
     usable = usable_frames(poses)
     kept = [t for t in members if usable[t] and masks[t].any()]
     if not kept:
         raise DancesynthError("The person is found in too few frames of the target video to learn from; use a "
                               "video where one person stays fully visible.")
-    return FrameBank(frames, masks, bank_keypoints(poses.keypoints, bank_framing.frames(poses)), np.array(kept))
+    return FrameBank(frames, masks, bank_keypoints(poses.keypoints, bank_framing.frames(poses)), np.array(kept),
+                     candidates=candidates)
 
 
 def prior_images(renderer: PriorRenderer, keypoints: np.ndarray, bank_framing: Framing, plate: np.ndarray,

@@ -52,6 +52,10 @@ class Pix2PixHDConfig:
             where the losses ask) instead of RGB and a mask painted over it.
         prior_scale: the prior is warped at this many times the model's resolution; the network's correction is
             upsampled onto it, so the output keeps the person's detail (rendered at ``prior_scale`` x the size).
+        prior_candidates: with ``prior``, how many nearest bank frames make the prior (odd): the per-pixel median
+            of their warps (:class:`stage2_video.prior.PriorRenderer`); 1: the nearest frame's warp. 3 gave the dancer
+            clip better images and fewer stray parts but ``sports2d`` worse poses, and warps twice as long: `dance`
+            fell below real time on 2 cores (docs/methods/warped_prior.md).
         lambda_mask: with ``blend``, L1 weight pulling the mask towards where the real frame differs from the plate
             near the skeleton (:func:`foreground_target`), so the person comes out opaque rather than a
             half-transparent average.
@@ -83,6 +87,7 @@ class Pix2PixHDConfig:
     prior: bool = False
     residual: bool = False
     prior_scale: int = 2
+    prior_candidates: int = 1
     lambda_gan: float = 1.0
     lambda_feat: float = 10.0
     lambda_vgg: float = 10.0
@@ -116,6 +121,9 @@ class Pix2PixHDConfig:
             raise DancesynthError("A residual generator has no mask; set lambda_mask to 0 with residual.")
         if self.prior_scale < 1:
             raise DancesynthError(f"The prior scale must be 1 or more, got {self.prior_scale}.")
+        if self.prior_candidates < 1 or self.prior_candidates % 2 == 0:
+            raise DancesynthError(f"The prior's candidates must be an odd count (1, 3, 5, ...), got "
+                                  f"{self.prior_candidates}.")
         factor = 2 ** (self.n_downsample + int(self.local_enhancer))
         if self.width % factor or self.height % factor:
             raise DancesynthError(

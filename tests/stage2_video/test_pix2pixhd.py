@@ -103,6 +103,8 @@ def test_size_must_divide_by_downsampling():
         preset("small", width=100, height=128)
     with pytest.raises(DancesynthError, match="Unknown preset"):
         preset("huge")
+    with pytest.raises(DancesynthError, match="odd count"):
+        preset("small", prior_candidates=2)
 
 
 def test_paper_preset_is_published_pix2pixhd():

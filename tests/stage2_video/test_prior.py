@@ -14,6 +14,7 @@ from stage2_video.prior import (
     PARTS,
     TORSO,
     FrameBank,
+    PriorRenderer,
     Source,
     bone_affine,
     fill_torso,
@@ -151,6 +152,12 @@ def test_retrieval_ignores_position_and_scale_and_never_returns_excluded_frames(
         window = (t - 5, t + 6)
         choice = bank.retrieve(poses[t], window, previous)
         assert all(not window[0] <= f < window[1] for f in choice.values()), (t, choice)
+        # The median prior's candidates: retrieval's choice first, then other frames, none excluded.
+        chosen = bank.choices(poses[t], 3, window, previous)
+        assert chosen[0] == choice
+        for group in GROUPS:
+            frames = [c[group] for c in chosen]
+            assert len(set(frames)) == 3 and not any(window[0] <= f < window[1] for f in frames)
         previous = choice
     # A bank shorter than the window keeps its farthest frames rather than failing.
     assert set(bank.retrieve(poses[30], (-100, 100)).values()) <= {0, 59}
@@ -218,3 +225,24 @@ def test_the_torso_comes_from_a_frame_whose_upper_arms_lie_like_the_poses():
     bank = _bank(np.stack([held_out, higher]))
     assert bank.retrieve(hanging)["core"] == 1
     assert bank.retrieve(held_out)["core"] == 0
+
+
+def test_the_median_prior_drops_a_part_that_only_one_of_its_frames_gets_wrong():
+    kp = standing_pose()
+    image, mask = textured_person(kp)
+    wrong = image.copy()
+    wrong[mask > 0] = (0, 0, 255)  # the nearest frame's person is blue: a misread frame
+    poses = np.repeat(kp[None], 3, axis=0)
+    poses[1:, :, :2] += np.random.default_rng(3).normal(0, 0.3, (2, 25, 2))  # the others a little farther
+    frames = np.stack([wrong, image, image])
+    masks = np.repeat(mask[None], 3, axis=0)
+    inside = cv2.erode(mask, np.ones((7, 7), np.uint8)) > 0
+    plate = np.zeros((SIZE, SIZE, 3), np.uint8)
+    for candidates, blue_share in ((1, 1.0), (3, 0.0)):
+        bank = FrameBank(frames, masks, poses, np.arange(3), candidates=candidates)
+        prior = PriorRenderer(bank)(kp, plate)
+        blue = (prior[..., 2] == 255) & (prior[..., 0] == 0) & (prior[..., 1] == 0)
+        assert blue[inside].mean() == pytest.approx(blue_share, abs=0.02)
+        assert (prior[..., 3][inside] == 255).all()
+    with pytest.raises(ValueError, match="odd"):
+        FrameBank(frames, masks, poses, np.arange(3), candidates=2)

@@ -109,11 +109,12 @@ def test_a_prior_model_painted_through_a_mask_still_loads_and_renders(tiny_targe
     train_video(video, run, "small", TrainOptions(epochs=1, max_steps=1, val_frames=2), poses=poses, device="cpu",
                 overrides={**tiny_config, "residual": False, "select_fraction": 0.0})
     meta = load_checkpoint(run, "stage2")[1]
-    # Its saved config as written before residual corrections and selection frames existed.
+    # Its saved config as written before residual corrections, selection frames and the median prior existed.
     update_meta(run, "stage2", {"config": {k: v for k, v in meta["config"].items()
-                                           if k not in ("residual", "select_fraction")}})
+                                           if k not in ("residual", "select_fraction", "prior_candidates")}})
     model = load_appearance_model(run, "cpu")
     assert model.config.prior and not model.config.repairs and model.generator is not None
+    assert model.bank.candidates == 1  # warped from one frame, as it was trained
     frames = list(render_frames(model, PoseSequence.load(poses).slice_frames(0, 3)))
     assert len(frames) == 3 and frames[0].shape == (64, 64, 3)
 
@@ -139,13 +140,13 @@ def test_a_model_renders_its_own_training_frames_as_training_warps_them(tiny_tar
     model = load_appearance_model(run, "cpu")
     seq = PoseSequence.load(poses).slice_frames(4, 8)
     window = round(EXCLUDE_SECONDS * seq.fps)
-    retrieve, chosen = model.bank.retrieve, []
+    choices, chosen = model.bank.choices, []
 
-    def spy(query, exclude=None, previous=None):
-        chosen.append((exclude, retrieve(query, exclude, previous)))
+    def spy(query, count, exclude=None, previous=None):
+        chosen.append((exclude, choices(query, count, exclude, previous)))
         return chosen[-1][1]
 
-    model.bank.retrieve = spy
+    model.bank.choices = spy
     list(render_layers(model, seq, first_frame=4))
     assert [e for e, _ in chosen] == [(t - window, t + window + 1) for t in range(4, 8)]
     chosen.clear()
