@@ -22,7 +22,7 @@ retrieval). Here, for every pose to render:
    part by the affine that takes its source bone onto the target bone (stretched along the bone, the torso's scale
    across it); head and hands by a similarity about the nose or the wrist with the torso's scale. Parts are
    painted back to front (torso, legs, head, arms, hands), giving an RGB + alpha image over the plate crop: the
-   generator's "warped prior".
+   generator's "warped prior" (or the per-pixel median of several retrieved frames' warps, :class:`PriorRenderer`).
 
 Everything is in the pixels of a bank image (the model's framing at ``scale`` times its resolution).
 """
@@ -562,9 +562,9 @@ class FrameBank:
 class PriorRenderer:
     """Warped priors for a sequence of poses, retrieval kept steady from one pose to the next.
 
-    Each prior is the per-pixel median of the warps of the bank's ``candidates`` nearest choices
-    (:meth:`FrameBank.choices`), each over the plate: where the nearest frames agree the median is as sharp as one
-    of them, and a part that only one of them gets wrong (a hand cut from the hip, a sleeve's edge) drops out.
+    With a bank of ``candidates`` > 1 each prior is the per-pixel median of the warps of that many choices
+    (:meth:`FrameBank.choices`), each over the plate: where most of the frames agree it is as sharp as one of them,
+    and what only one of them gets wrong (pads at the shoulders, a glove over the face) drops out.
 
     ``exclude_frames``: frames within this many of a frame being learnt are not retrieved for it (training).
     """
