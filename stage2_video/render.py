@@ -316,15 +316,23 @@ def render_layers(model: AppearanceModel, poses: PoseSequence, framings: list[Fr
         window = None if first_frame is None else round(EXCLUDE_SECONDS * poses.fps)
         renderer = PriorRenderer(model.bank, exclude_frames=window)
     size = (model.config.width, model.config.height)
-    for t, (keypoints, framing) in enumerate(zip(poses.keypoints, framings or model.framing.frames(poses))):
-        if renderer is None:
+    pairs = zip(poses.keypoints, framings or model.framing.frames(poses))
+    if renderer is None:
+        for keypoints, framing in pairs:
             previous = model.step(condition(keypoints, framing, model.plate), previous)
             yield to_image(previous[0]), None
-            continue
-        frame_index = None if first_frame is None else first_frame + t
-        high, low = prior_images(renderer, keypoints, model.output_framing(framing), model.plate, size, frame_index)
-        previous, frame, coverage = model.step_with_prior(condition(keypoints, framing, model.plate, low), high,
-                                                          previous)
+        return
+
+    def conditions() -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        for t, (keypoints, framing) in enumerate(pairs):
+            frame_index = None if first_frame is None else first_frame + t
+            high, low = prior_images(renderer, keypoints, model.output_framing(framing), model.plate, size,
+                                     frame_index)
+            yield condition(keypoints, framing, model.plate, low), high
+
+    # The warp (mostly Python) runs a frame ahead in a thread while the network (native, GIL released) runs here.
+    for label, high in read_ahead(conditions()):
+        previous, frame, coverage = model.step_with_prior(label, high, previous)
         yield frame, coverage
 
 
