@@ -330,7 +330,8 @@ def render_layers(model: AppearanceModel, poses: PoseSequence, framings: list[Fr
                                      frame_index)
             yield condition(keypoints, framing, model.plate, low), high
 
-    # The warp (mostly Python) runs a frame ahead in a thread while the network (native, GIL released) runs here.
+    # The warp (mostly Python) runs up to two frames ahead in a thread while the network (native, GIL released)
+    # runs here.
     for label, high in read_ahead(conditions()):
         previous, frame, coverage = model.step_with_prior(label, high, previous)
         yield frame, coverage
