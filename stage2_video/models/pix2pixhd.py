@@ -54,8 +54,8 @@ class Pix2PixHDConfig:
             upsampled onto it, so the output keeps the person's detail (rendered at ``prior_scale`` x the size).
         prior_candidates: with ``prior``, how many nearest bank frames make the prior (odd): the per-pixel median
             of their warps (:class:`stage2_video.prior.PriorRenderer`); 1: the nearest frame's warp. 3 gave the dancer
-            clip better images and fewer stray parts, but warps twice as long: `dance` fell below real time on 2
-            cores (docs/methods/warped_prior.md).
+            clip better images and fewer stray parts, but left the ``sports2d`` man pale and half transparent, and
+            warps twice as long (docs/methods/warped_prior.md).
         lambda_mask: with ``blend``, L1 weight pulling the mask towards where the real frame differs from the plate
             near the skeleton (:func:`foreground_target`), so the person comes out opaque rather than a
             half-transparent average.
