@@ -94,6 +94,8 @@ class Part:
         bias: torso lengths added to its distance when parts compete for a pixel: torso and legs yield to the
             arms, hands and head in front of them (an arm across the body, a hand on a hip or a thigh); the face
             and a hand near it go by distance alone.
+        fit: for a rigid part, joints whose least-squares rotation and translation between the poses move it (at
+            least ``MIN_FIT_JOINTS`` seen in both; fewer: turned with ``bone``), scaled like the torso.
     """
 
     name: str
@@ -104,6 +106,7 @@ class Part:
     reach: float
     group: str
     bias: float = 0.0
+    fit: tuple[int, ...] = ()
 
 
 _R_FOREARM, _L_FOREARM = (J["RElbow"], J["RWrist"]), (J["LElbow"], J["LWrist"])
@@ -117,7 +120,8 @@ PARTS: tuple[Part, ...] = (
     Part("left shin", ((J["LKnee"], J["LAnkle"]), (J["LAnkle"], J["LBigToe"]), (J["LAnkle"], J["LHeel"])),
          (J["LKnee"], J["LAnkle"]), False, 0.0, 0.3, "left leg", bias=0.15),
     Part("head", ((J["Neck"], J["Nose"]), (J["Nose"], J["REye"]), (J["Nose"], J["LEye"]), (J["REye"], J["REar"]),
-                  (J["LEye"], J["LEar"])), (J["Neck"], J["Nose"]), True, 0.0, 0.5, "core"),
+                  (J["LEye"], J["LEar"])), (J["Neck"], J["Nose"]), True, 0.0, 0.5, "core",
+         fit=(J["Neck"], J["Nose"], J["REye"], J["LEye"], J["REar"], J["LEar"])),
     Part("right upper arm", ((J["RShoulder"], J["RElbow"]),), (J["RShoulder"], J["RElbow"]), False, 0.0, 0.25,
          "right arm"),
     Part("left upper arm", ((J["LShoulder"], J["LElbow"]),), (J["LShoulder"], J["LElbow"]), False, 0.0, 0.25,
@@ -140,6 +144,8 @@ GROUPS = tuple(GROUP_BONES)
 MAX_STRETCH = 2.5
 # Radius (torso lengths) of the disc at each shoulder that the torso's region also covers.
 SHOULDER_RADIUS = 0.15
+# A rigid part is placed by its own features (the face's points) when at least this many are seen in both poses.
+MIN_FIT_JOINTS = 3
 # Each part's region grows by this many pixels into its neighbours', so moved parts overlap instead of leaving a seam.
 OVERLAP_PIXELS = 2
 NO_PART = 255
@@ -326,14 +332,18 @@ def fill_torso(image: np.ndarray, labels: np.ndarray, keypoints: np.ndarray) -> 
     return filled, region | holes
 
 
-def similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+def similarity(src: np.ndarray, dst: np.ndarray, scale: float | None = None) -> np.ndarray:
     """``[2, 3]`` least-squares similarity (rotation, uniform scale, translation) taking ``[n, 2]`` points ``src``
-    onto ``dst`` (n >= 2): Umeyama's (1991) solution, which in the plane has this closed form."""
+    onto ``dst`` (n >= 2): Umeyama's (1991) solution, which in the plane has this closed form. ``scale``: the
+    least-squares rotation and translation at this scale instead (points a few pixels apart make a noisy scale)."""
     mu_s, mu_d = src.mean(0), dst.mean(0)
     s, d = src - mu_s, dst - mu_d
     variance = max(float((s ** 2).sum()), 1e-9 * len(src))
     cos = float((s * d).sum()) / variance
     sin = float((s[:, 0] * d[:, 1] - s[:, 1] * d[:, 0]).sum()) / variance
+    if scale is not None:
+        norm = max(math.hypot(cos, sin), 1e-12)
+        cos, sin = cos / norm * scale, sin / norm * scale
     x, y = float(mu_d[0] - cos * mu_s[0] + sin * mu_s[1]), float(mu_d[1] - sin * mu_s[0] - cos * mu_s[1])
     return np.array([[cos, -sin, x], [sin, cos, y]])
 
@@ -367,6 +377,9 @@ def part_transform(part: Part, src: np.ndarray, dst: np.ndarray, torso_fit: np.n
     if min(src[a, 2], src[b, 2], dst[a, 2], dst[b, 2]) < MIN_CONFIDENCE:
         return None
     scale = math.hypot(torso_fit[0, 0], torso_fit[1, 0])  # a similarity's first column: scale times a unit vector
+    shared = [j for j in part.fit if src[j, 2] >= MIN_CONFIDENCE and dst[j, 2] >= MIN_CONFIDENCE]
+    if len(shared) >= MIN_FIT_JOINTS:
+        return similarity(src[shared, :2], dst[shared, :2], scale)
     if part.rigid:  # a similarity about the child joint, turned with the bone
         bone, bone2 = src[b, :2] - src[a, :2], dst[b, :2] - dst[a, :2]
         return bone_affine(src[b, :2], src[b, :2] + bone, dst[b, :2], dst[b, :2] + _turned(bone, bone2, scale), scale)

@@ -65,6 +65,10 @@ def test_similarity_and_bone_affine_are_exact():
                                                                          -3.0]])
     points = np.random.default_rng(0).uniform(0, 100, (6, 2))
     assert np.allclose(similarity(points, points @ m[:, :2].T + m[:, 2]), m)
+    # At a given scale: the least-squares rotation and translation (the head's, at the torso's scale).
+    half = m.copy()
+    half[:, :2] /= 2
+    assert np.allclose(similarity(points, points @ m[:, :2].T + m[:, 2], scale=scale / 2)[:, :2], half[:, :2])
     a, b, a2, b2 = np.array([10.0, 10]), np.array([10.0, 30]), np.array([50.0, 50]), np.array([80.0, 50])
     affine = bone_affine(a, b, a2, b2, across=0.8)
     assert np.allclose(affine @ [*a, 1], a2) and np.allclose(affine @ [*b, 1], b2)
@@ -105,6 +109,26 @@ def test_a_forearm_turned_about_its_elbow_carries_its_hand_to_the_new_wrist():
     ys, xs = np.nonzero(red)
     assert len(xs) and np.hypot(xs.mean() - target[J["RWrist"], 0], ys.mean() - target[J["RWrist"], 1]) < 1.5
     assert not red[int(wrist[1]), int(wrist[0])]  # nothing of the hand stays behind
+
+
+def test_a_head_tilted_about_the_neck_carries_its_eyes_to_the_new_eyes():
+    kp = standing_pose()
+    image, mask = textured_person(kp)
+    image[:] = (40, 40, 40)
+    for eye in ("REye", "LEye"):  # red markers on the eyes
+        cv2.circle(image, tuple(int(v) for v in kp[J[eye], :2]), 1, (255, 0, 0), -1)
+    neck = kp[J["Neck"], :2]
+    angle = np.deg2rad(30)
+    turn = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    target = kp.copy()
+    for name in ("Nose", "REye", "LEye", "REar", "LEar"):
+        target[J[name], :2] = neck + turn @ (kp[J[name], :2] - neck)
+    colour, _ = warp_parts({g: source_of(image, mask, kp) for g in GROUPS}, target, (SIZE, SIZE))
+    red = (colour[..., 0] > 150) & (colour[..., 1] < 60)
+    for eye in ("REye", "LEye"):
+        x, y = target[J[eye], :2]
+        near = red[int(y) - 2:int(y) + 3, int(x) - 2:int(x) + 3]
+        assert near.any(), f"no red marker within 2 px of the target's {eye}"
 
 
 def test_a_hand_on_the_hip_belongs_to_its_arm_and_the_torso_behind_an_arm_is_filled():
