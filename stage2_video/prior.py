@@ -15,12 +15,13 @@ retrieval). Here, for every pose to render:
    it stays nearly as good (no flicker), and frames within ``exclude`` of the frame being learnt are never returned
    (the network must learn to repair a warp, not to copy its input).
 2. **Parts** (:func:`part_labels`): the source frame's person mask (:mod:`stage2_video.masks`) is split into head,
-   torso, upper arms, forearms, hands, thighs and shins with feet by the nearest drawn bone (a hand belongs to
+   torso, upper arms, forearms, hands, thighs, shins and feet by the nearest drawn bone (a hand belongs to
    its arm even where it rests on the torso or a thigh); torso pixels hidden by an arm are filled in from around
    them.
 3. **Warping** (:func:`warp_parts`): the torso moves by the least-squares similarity of its six joints; each limb
    part by the affine that takes its source bone onto the target bone (stretched along the bone, the torso's scale
-   across it); head and hands by a similarity about the nose or the wrist with the torso's scale. Parts are
+   across it); head and feet by the least-squares rotation and translation of their points (face and neck; ankle,
+   toes and heel), hands by a similarity about the wrist, all with the torso's scale. Parts are
    painted back to front (torso, legs, head, arms, hands), giving an RGB + alpha image over the plate crop: the
    generator's "warped prior" (or the per-pixel median of several retrieved frames' warps, :class:`PriorRenderer`).
 
@@ -115,10 +116,14 @@ PARTS: tuple[Part, ...] = (
     Part("torso", ((J["Neck"], J["MidHip"]),), None, False, 0.0, 0.25, "core", bias=0.15),
     Part("right thigh", ((J["RHip"], J["RKnee"]),), (J["RHip"], J["RKnee"]), False, 0.0, 0.3, "right leg", bias=0.15),
     Part("left thigh", ((J["LHip"], J["LKnee"]),), (J["LHip"], J["LKnee"]), False, 0.0, 0.3, "left leg", bias=0.15),
-    Part("right shin", ((J["RKnee"], J["RAnkle"]), (J["RAnkle"], J["RBigToe"]), (J["RAnkle"], J["RHeel"])),
-         (J["RKnee"], J["RAnkle"]), False, 0.0, 0.3, "right leg", bias=0.15),
-    Part("left shin", ((J["LKnee"], J["LAnkle"]), (J["LAnkle"], J["LBigToe"]), (J["LAnkle"], J["LHeel"])),
-         (J["LKnee"], J["LAnkle"]), False, 0.0, 0.3, "left leg", bias=0.15),
+    Part("right shin", ((J["RKnee"], J["RAnkle"]),), (J["RKnee"], J["RAnkle"]), False, 0.0, 0.3, "right leg", bias=0.15),
+    Part("left shin", ((J["LKnee"], J["LAnkle"]),), (J["LKnee"], J["LAnkle"]), False, 0.0, 0.3, "left leg", bias=0.15),
+    Part("right foot", ((J["RAnkle"], J["RBigToe"]), (J["RAnkle"], J["RHeel"]), (J["RAnkle"], J["RSmallToe"])),
+         (J["RKnee"], J["RAnkle"]), True, 0.0, 0.3, "right leg", bias=0.15,
+         fit=(J["RAnkle"], J["RBigToe"], J["RHeel"], J["RSmallToe"])),
+    Part("left foot", ((J["LAnkle"], J["LBigToe"]), (J["LAnkle"], J["LHeel"]), (J["LAnkle"], J["LSmallToe"])),
+         (J["LKnee"], J["LAnkle"]), True, 0.0, 0.3, "left leg", bias=0.15,
+         fit=(J["LAnkle"], J["LBigToe"], J["LHeel"], J["LSmallToe"])),
     Part("head", ((J["Neck"], J["Nose"]), (J["Nose"], J["REye"]), (J["Nose"], J["LEye"]), (J["REye"], J["REar"]),
                   (J["LEye"], J["LEar"])), (J["Neck"], J["Nose"]), True, 0.0, 0.5, "core",
          fit=(J["Neck"], J["Nose"], J["REye"], J["LEye"], J["REar"], J["LEar"])),
