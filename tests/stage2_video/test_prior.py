@@ -131,6 +131,20 @@ def test_a_head_tilted_about_the_neck_carries_its_eyes_to_the_new_eyes():
         assert near.any(), f"no red marker within 2 px of the target's {eye}"
 
 
+def test_a_bent_knee_leaves_the_foot_flat_where_its_toes_are():
+    kp = standing_pose()
+    image, mask = textured_person(kp)
+    image[:] = (40, 40, 40)
+    toe = kp[J["LBigToe"], :2]
+    cv2.circle(image, tuple(int(v) for v in toe), 1, (255, 0, 0), -1)  # a red marker on the left toe
+    target = kp.copy()
+    target[J["LKnee"], 0] += 8  # the knee out to the side: thigh and shin turn, ankle, toe and heel stay
+    colour, _ = warp_parts({g: source_of(image, mask, kp) for g in GROUPS}, target, (SIZE, SIZE))
+    red = (colour[..., 0] > 150) & (colour[..., 1] < 60)
+    ys, xs = np.nonzero(red)
+    assert len(xs) and np.hypot(xs.mean() - toe[0], ys.mean() - toe[1]) < 1.5
+
+
 def test_a_hand_on_the_hip_belongs_to_its_arm_and_the_torso_behind_an_arm_is_filled():
     kp = standing_pose()
     kp[J["RElbow"], :2] = (46, 50)
