@@ -185,6 +185,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=Path("stage1_pose/pretrained/beat_tracker"))
     parser.add_argument("--minutes", type=float, default=45.0, help="train: wall-clock training budget")
     parser.add_argument("--preset", default="small")
+    parser.add_argument("--seed", type=int, default=0, help="train: the initial weights' and excerpts' seed")
     args = parser.parse_args()
     if not (args.cache / "pkgs" / "mma").is_dir():
         raise SystemExit(f"No packages in {args.cache}: run `beat_benchmark.py fetch` first.")
@@ -193,7 +194,7 @@ def main() -> None:
     if args.command == "train":
         from stage1_pose.beat_tracking.train import TrainConfig, load_corpus, save, train
 
-        model, log = train(load_corpus(files), args.preset, TrainConfig(minutes=args.minutes), args.out)
+        model, log = train(load_corpus(files), args.preset, TrainConfig(minutes=args.minutes, seed=args.seed), args.out)
         save(model, args.out, {"corpus_songs": len(files), **log})
         print(f"wrote {args.out}", flush=True)
 
