@@ -1,10 +1,11 @@
 """Train the learned beat and downbeat tracker (:mod:`stage1_pose.beat_tracking`) on audio with exact grids that
-needs no labelling, and write the model the package ships.
+needs no labelling, and write the networks the package ships (two, seeds 0 and 1; the tracker averages them).
 
     .venv/bin/python benchmarks/beat_benchmark.py fetch        # once: packages, renderer, the benchmark's pieces
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_beat_tracker.py corpus   # renders the corpus (~9 min)
-    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_beat_tracker.py train --minutes 45 \\
-        --out stage1_pose/pretrained/beat_tracker                                  # renders what is missing first
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_beat_tracker.py train --minutes 45 --seed 0
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_beat_tracker.py train --minutes 45 --seed 1
+        # each writes stage1_pose/pretrained/beat_tracker/seed<SEED>, rendering what is missing first
 
 It lives beside the benchmark because it reuses the benchmark's packages, renderer and loaders and needs the same
 system tools (``fluidsynth``, ``fluid-soundfont-gm``; ``mma`` and the scores come from the fetched packages), which
@@ -182,7 +183,8 @@ def main() -> None:
     parser.add_argument("command", choices=("corpus", "train"))
     parser.add_argument("--cache", type=Path, default=DEFAULT_CACHE, help="the benchmark's cache (after fetch)")
     parser.add_argument("--corpus", type=Path, default=DEFAULT_CORPUS)
-    parser.add_argument("--out", type=Path, default=Path("stage1_pose/pretrained/beat_tracker"))
+    parser.add_argument("--out", type=Path, default=None,
+                        help="train: the network's folder (default stage1_pose/pretrained/beat_tracker/seed<SEED>)")
     parser.add_argument("--minutes", type=float, default=45.0, help="train: wall-clock training budget")
     parser.add_argument("--preset", default="small")
     parser.add_argument("--seed", type=int, default=0, help="train: the initial weights' and excerpts' seed")
@@ -192,11 +194,13 @@ def main() -> None:
     files = build_corpus(args.cache, args.corpus)
     print(f"corpus: {len(files)} songs in {args.corpus}", flush=True)
     if args.command == "train":
+        from stage1_pose.beat_tracking.tracker import PRETRAINED
         from stage1_pose.beat_tracking.train import TrainConfig, load_corpus, save, train
 
-        model, log = train(load_corpus(files), args.preset, TrainConfig(minutes=args.minutes, seed=args.seed), args.out)
-        save(model, args.out, {"corpus_songs": len(files), **log})
-        print(f"wrote {args.out}", flush=True)
+        out = args.out or PRETRAINED / f"seed{args.seed}"
+        model, log = train(load_corpus(files), args.preset, TrainConfig(minutes=args.minutes, seed=args.seed), out)
+        save(model, out, {"corpus_songs": len(files), **log})
+        print(f"wrote {out}", flush=True)
 
 
 if __name__ == "__main__":

@@ -5,9 +5,9 @@ Dance Revolution's ``small`` preset trained on the built-in dataset (60 songs of
 ``scripts/build_pose_model.sh``, chosen by ``dancesynth check`` and the stage-1 report (docs/methods/
 dance_revolution.md gives its numbers). ``python -m stage1_pose.pretrained RUN`` replaces it with another run.
 
-``beat_tracker/`` is the learned beat and downbeat tracker's network (``model.safetensors`` + ``config.json``),
-trained by ``benchmarks/train_beat_tracker.py`` and loaded by :mod:`stage1_pose.beat_tracking.tracker`
-(docs/methods/beat_tracking.md).
+``beat_tracker/`` holds the learned beat and downbeat tracker's networks, one folder each (``seed0/``, ``seed1/``:
+``model.safetensors`` + ``config.json``), trained by ``benchmarks/train_beat_tracker.py`` and averaged by
+:mod:`stage1_pose.beat_tracking.tracker` (docs/methods/beat_tracking.md).
 """
 
 from __future__ import annotations

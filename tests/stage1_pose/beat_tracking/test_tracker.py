@@ -12,7 +12,7 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import load_song
 from stage1_pose.beat_tracking.model import PRESETS, BeatTCN, load_model, save_model
 from stage1_pose.beat_tracking.spectrogram import FPS, N_MELS, frame_of, mel_frames, network_input
-from stage1_pose.beat_tracking.tracker import PRETRAINED, decode_activations, track
+from stage1_pose.beat_tracking.tracker import PRETRAINED, activations, decode_activations, track
 from stage1_pose.beat_tracking.train import Song, TrainConfig, augmented_excerpt, targets
 from stage1_pose.beats import BEAT_TRACKERS, song_beats
 
@@ -60,6 +60,16 @@ def test_augmented_excerpt_keeps_beats_on_their_onsets():
         assert np.all(np.min(np.abs(marked[:, None] - onsets[None, :]), axis=1) <= 2)
 
 
+def test_an_ensemble_gives_the_mean_of_its_networks_probabilities():
+    torch.manual_seed(0)
+    first, second = BeatTCN(PRESETS["tiny"]).eval(), BeatTCN(PRESETS["tiny"]).eval()
+    song = np.random.default_rng(0).normal(0, 0.1, 22050 * 3).astype(np.float32)
+    both = activations(song, 22050, [first, second])
+    assert both.shape[1] == 3 and np.allclose(both.sum(1), 1, atol=1e-5)
+    assert np.allclose(both, (activations(song, 22050, first) + activations(song, 22050, second)) / 2, atol=1e-6)
+    assert not np.allclose(activations(song, 22050, first), activations(song, 22050, second), atol=1e-3)
+
+
 def test_pooled_decoding_keeps_full_rate_times():
     """Peaks at 100 fps (with their neighbours at half height, as the network gives them) come back on their own
     frames after decoding at 50 fps."""
@@ -78,8 +88,10 @@ def test_shipped_model_is_small_and_tracks_a_real_recording():
     """The committed excerpt (a dev-half piece of the benchmark, so in the training data): its tempo, bars of 4,
     and its beats within 70 ms for the first 15 s. After 17 s the network's peaks move to the off-beats and the
     decoder follows them (F 0.65 over the whole excerpt; docs/methods/beat_tracking.md, limitations)."""
-    assert {p.name for p in PRETRAINED.iterdir()} == {"config.json", "model.safetensors"}
-    assert sum(p.stat().st_size for p in PRETRAINED.iterdir()) <= 5_000_000
+    members = sorted(PRETRAINED.iterdir())
+    assert len(members) == 2
+    assert all({p.name for p in folder.iterdir()} == {"config.json", "model.safetensors"} for folder in members)
+    assert sum(p.stat().st_size for folder in members for p in folder.iterdir()) <= 5_000_000
     truth = np.array(json.loads(REAL_SONG.with_suffix(".beats.json").read_text())["beats"])
     found = track(load_song(REAL_SONG.with_suffix(".ogg"), 22050), 22050)
     assert mir_eval.beat.f_measure(truth[truth < 15], found.beats[found.beats < 15]) >= 0.95
