@@ -95,17 +95,24 @@ def test_a_body_moved_by_a_known_transform_lands_exactly_where_it_should():
     assert alpha[outside].max() == 0
 
 
-def test_a_forearm_turned_about_its_elbow_carries_its_hand_to_the_new_wrist():
+def warped_markers(joints: tuple[str, ...], radius: int, target: np.ndarray) -> np.ndarray:
+    """Where red markers on ``joints`` of a grey standing person land when it is warped onto ``target``
+    (``[SIZE, SIZE]`` bool)."""
     kp = standing_pose()
     image, mask = textured_person(kp)
     image[:] = (40, 40, 40)
-    wrist = kp[J["RWrist"], :2]
-    cv2.circle(image, tuple(int(v) for v in wrist), 2, (255, 0, 0), -1)  # a red marker on the right wrist
+    for joint in joints:
+        cv2.circle(image, tuple(int(v) for v in kp[J[joint], :2]), radius, (255, 0, 0), -1)
+    colour, _ = warp_parts({g: source_of(image, mask, kp) for g in GROUPS}, target, (SIZE, SIZE))
+    return (colour[..., 0] > 150) & (colour[..., 1] < 60)
+
+
+def test_a_forearm_turned_about_its_elbow_carries_its_hand_to_the_new_wrist():
+    kp = standing_pose()
+    wrist, elbow = kp[J["RWrist"], :2], kp[J["RElbow"], :2]
     target = kp.copy()
-    elbow = kp[J["RElbow"], :2]
     target[J["RWrist"], :2] = elbow + (-(wrist - elbow)[1], (wrist - elbow)[0])  # the forearm turned 90 degrees
-    colour, alpha = warp_parts({g: source_of(image, mask, kp) for g in GROUPS}, target, (SIZE, SIZE))
-    red = (colour[..., 0] > 200) & (colour[..., 1] < 60)
+    red = warped_markers(("RWrist",), 2, target)
     ys, xs = np.nonzero(red)
     assert len(xs) and np.hypot(xs.mean() - target[J["RWrist"], 0], ys.mean() - target[J["RWrist"], 1]) < 1.5
     assert not red[int(wrist[1]), int(wrist[0])]  # nothing of the hand stays behind
@@ -113,35 +120,24 @@ def test_a_forearm_turned_about_its_elbow_carries_its_hand_to_the_new_wrist():
 
 def test_a_head_tilted_about_the_neck_carries_its_eyes_to_the_new_eyes():
     kp = standing_pose()
-    image, mask = textured_person(kp)
-    image[:] = (40, 40, 40)
-    for eye in ("REye", "LEye"):  # red markers on the eyes
-        cv2.circle(image, tuple(int(v) for v in kp[J[eye], :2]), 1, (255, 0, 0), -1)
     neck = kp[J["Neck"], :2]
     angle = np.deg2rad(30)
     turn = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
     target = kp.copy()
     for name in ("Nose", "REye", "LEye", "REar", "LEar"):
         target[J[name], :2] = neck + turn @ (kp[J[name], :2] - neck)
-    colour, _ = warp_parts({g: source_of(image, mask, kp) for g in GROUPS}, target, (SIZE, SIZE))
-    red = (colour[..., 0] > 150) & (colour[..., 1] < 60)
+    red = warped_markers(("REye", "LEye"), 1, target)
     for eye in ("REye", "LEye"):
         x, y = target[J[eye], :2]
-        near = red[int(y) - 2:int(y) + 3, int(x) - 2:int(x) + 3]
-        assert near.any(), f"no red marker within 2 px of the target's {eye}"
+        assert red[int(y) - 2:int(y) + 3, int(x) - 2:int(x) + 3].any(), f"no marker within 2 px of the {eye}"
 
 
 def test_a_bent_knee_leaves_the_foot_flat_where_its_toes_are():
     kp = standing_pose()
-    image, mask = textured_person(kp)
-    image[:] = (40, 40, 40)
-    toe = kp[J["LBigToe"], :2]
-    cv2.circle(image, tuple(int(v) for v in toe), 1, (255, 0, 0), -1)  # a red marker on the left toe
     target = kp.copy()
     target[J["LKnee"], 0] += 8  # the knee out to the side: thigh and shin turn, ankle, toe and heel stay
-    colour, _ = warp_parts({g: source_of(image, mask, kp) for g in GROUPS}, target, (SIZE, SIZE))
-    red = (colour[..., 0] > 150) & (colour[..., 1] < 60)
-    ys, xs = np.nonzero(red)
+    ys, xs = np.nonzero(warped_markers(("LBigToe",), 1, target))
+    toe = kp[J["LBigToe"], :2]
     assert len(xs) and np.hypot(xs.mean() - toe[0], ys.mean() - toe[1]) < 1.5
 
 
