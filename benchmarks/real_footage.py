@@ -22,9 +22,9 @@ Every row is scored on the held-out last 15 % of the clip (never trained on, nev
 the real poses and composited into the full frame, on "dance frames": held-out frames whose pose has a torso and
 differs from the clip's median pose by more than ``DANCE_DISTANCE`` torso lengths per joint on average (standing
 still scores the plate's and the network's easy case). Printed per row: PCK@0.1 and @0.2 (BlazePose run on the
-composited frame against the real pose, torso-normalised), SSIM and PSNR inside the real person's box (grown by
-``BOX_MARGIN``), training minutes, steps, the step kept (whose weights render: the best on the trainer's selection
-frames) and steps/s, the warp's milliseconds per frame, and for ``trained`` the
+composited frame against the real pose, torso-normalised), SSIM and PSNR inside the real person's box
+(:func:`stage2_video.quality.person_box`), training minutes, steps, the step kept (whose weights render: the best
+on the trainer's selection frames) and steps/s, the warp's milliseconds per frame, and for ``trained`` the
 frames/s of `dance`'s frame loop with the cached model on a ``--dance-seconds`` segment of a real song. PCK is
 partly circular for a warp (its joints land on the target by construction): read it with the image measures.
 Writes ``docs/real_footage/<clip>.jpg``: 8 held-out frames, real | warped prior | trained output (| today), and
@@ -55,7 +55,7 @@ from stage2_video.composite import scene_compositor
 from stage2_video.framing import FollowFraming, condition, usable_frames, video_framing
 from stage2_video.models.pix2pixhd import preset as preset_config
 from stage2_video.prior import PriorRenderer
-from stage2_video.quality import pck, psnr, ssim
+from stage2_video.quality import box_scores, pck
 from stage2_video.render import load_appearance_model, render_layers
 from stage2_video.train import KIND, TrainOptions, train_video
 from stage2_video.training_data import (
@@ -78,8 +78,6 @@ REPO = Path(__file__).resolve().parent.parent
 SONG = REPO / "tests" / "data" / "real_song" / "escape_from_chaosland_40-65s.ogg"
 # A held-out frame is a dance frame when its joints lie this far (torso lengths, mean) from the clip's median pose.
 DANCE_DISTANCE = 0.25
-# The person's box for SSIM / PSNR: the real pose's joints' box grown by this share of its longer side.
-BOX_MARGIN = 0.15
 SHEET_FRAMES = 8
 
 
@@ -129,14 +127,6 @@ def dance_frames(poses: PoseSequence, frames: range) -> list[int]:
     distance = np.array([np.linalg.norm(relative[t] - median, axis=-1)[seen[t]].mean() if seen[t].any() else 0.0
                          for t in range(len(poses))])
     return [t for t in frames if usable[t] and distance[t] > DANCE_DISTANCE]
-
-
-def person_box(keypoints: np.ndarray, width: int, height: int) -> tuple[int, int, int, int]:
-    seen = keypoints[:, 2] >= 0.05
-    lo, hi = keypoints[seen, :2].min(0), keypoints[seen, :2].max(0)
-    grow = BOX_MARGIN * float((hi - lo).max())
-    x0, y0 = (int(max(0, v - grow)) for v in lo)
-    return x0, y0, int(min(width, hi[0] + grow + 1)), int(min(height, hi[1] + grow + 1))
 
 
 @dataclass
@@ -191,10 +181,7 @@ def score(row: str, frames: list[np.ndarray], reals: list[np.ndarray], commanded
     the dance frames)."""
     found = extracted(frames, commanded.fps)
     hit = np.array(dancing)
-    boxes = [person_box(k, commanded.width, commanded.height) for k in commanded.keypoints]
-    crops = [(f[y0:y1, x0:x1], r[y0:y1, x0:x1]) for f, r, (x0, y0, x1, y1) in zip(frames, reals, boxes)]
-    ssims = np.array([ssim(a, b) for a, b in crops])
-    psnrs = np.array([psnr(a, b) for a, b in crops])
+    ssims, psnrs = np.array([box_scores(f, r, k) for f, r, k in zip(frames, reals, commanded.keypoints)]).T
     subset = np.flatnonzero(hit)
     dance_found, dance_poses = found.replace(found.keypoints[subset]), commanded.replace(commanded.keypoints[subset])
     return Scored(row, [frames[i] for i in subset], pck(found, commanded, 0.1), pck(dance_found, dance_poses, 0.1),

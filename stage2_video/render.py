@@ -46,6 +46,7 @@ from stage2_video.models.pix2pixhd import (
     Pix2PixHDConfig,
     blend,
     blend_base,
+    carry_correction,
     generator_channels,
     repair,
 )
@@ -217,13 +218,14 @@ class AppearanceModel:
         if self.generator is None:
             return base_low, to_image(base_high[0]), alpha[0, 0].cpu().numpy()
         raw = self.step(cond, previous).to(self.device)
-        raw_high = F.interpolate(raw, size=prior.shape[:2], mode="bilinear", align_corners=False)
         if self.config.repairs:
-            low, frame_high = repair(raw, base_low), repair(raw_high, base_high)
+            low = repair(raw, base_low)
+            frame_high = carry_correction(low, base_low, base_high)
             # The person reaches wherever the correction changed the frame visibly, faint changes faded out.
             mask = (frame_high - base_high).abs().amax(1, keepdim=True).div(VISIBLE_CHANGE).clamp(max=1.0)
         else:
             low, _ = blend(raw, base_low)
+            raw_high = F.interpolate(raw, size=prior.shape[:2], mode="bilinear", align_corners=False)
             frame_high, mask = blend(raw_high, base_high)
         coverage = torch.maximum(alpha, mask)
         return low, to_image(frame_high[0]), coverage[0, 0].cpu().numpy()

@@ -45,6 +45,7 @@ from stage2_video.models.pix2pixhd import (
     Pix2PixHD,
     Pix2PixHDConfig,
     blend_base,
+    carry_correction,
     feature_matching_loss,
     foreground_target,
     lsgan_loss,
@@ -52,7 +53,7 @@ from stage2_video.models.pix2pixhd import (
 )
 from stage2_video.normalize import body_stats
 from stage2_video.prior import scaled_framing
-from stage2_video.quality import psnr, ssim
+from stage2_video.quality import box_scores, psnr, ssim
 from stage2_video.retarget import target_bone_lengths
 from stage2_video.training_data import (
     KIND,
@@ -65,6 +66,7 @@ from stage2_video.training_data import (
     selection_split,
     split_ranges,
     to_image,
+    to_tensor,
 )
 from stage2_video.vgg import VGGLoss, build_vgg_loss
 
@@ -249,7 +251,8 @@ class VideoTrainer:
     def validate(self) -> dict[str, float]:
         """Mean SSIM / PSNR over up to ``val_frames`` held-out frames, and as ``select_ssim`` / ``select_psnr``
         over the selection frames (each warped only from bank frames more than 1 s away), generated in sequence
-        as at render time."""
+        as at render time; a model repairing the warped prior is scored at its output size in the person's box
+        (:meth:`_frame_scores`)."""
         scores = self._scores(self.val_range)
         if len(self.select_range):
             scores |= {f"select_{k}": v for k, v in self._scores(self.select_range).items()}
@@ -257,20 +260,32 @@ class VideoTrainer:
 
     def _scores(self, frames: range) -> dict[str, float]:
         self.model.eval()
-        scores_s, scores_p, previous = [], [], None
+        scores, previous = [], None
         pairs = FramePairs(self.target, frames)
         renderer = self.target.renderer()
         for t in [t for t in frames if self.target.usable[t]][:self.options.val_frames]:
-            label, _ = pairs.item(t, renderer)
-            previous = self._generate(label[None].to(self.device), previous)
-            fake = to_image(previous[0])
-            real = np.asarray(self.target.frames[t])
-            scores_s.append(ssim(fake, real))
-            scores_p.append(psnr(fake, real))
+            label, _, prior = pairs.sample(t, renderer)
+            label = label[None].to(self.device)
+            previous = self._generate(label, previous)
+            scores.append(self._frame_scores(t, label, previous, prior))
         self.model.train()
-        if not scores_s:
+        if not scores:
             return {"ssim": math.nan, "psnr": math.nan}
-        return {"ssim": float(np.mean(scores_s)), "psnr": float(np.mean(scores_p))}
+        return dict(zip(("ssim", "psnr"), np.mean(scores, axis=0).tolist()))
+
+    def _frame_scores(self, t: int, label: torch.Tensor, frame: torch.Tensor,
+                      prior: np.ndarray | None) -> tuple[float, float]:
+        """(SSIM, PSNR) of the model's ``[1, 3, H, W]`` ``frame`` for frame ``t``: for a model that repairs the warped
+        prior, at the size it renders (its correction carried onto the bank-size ``prior``) inside the person's box,
+        as the real-footage benchmark scores it (the whole crop at the model's size favoured steps that smoothed the
+        person); otherwise over the model's frame."""
+        if prior is None or not self.config.repairs:
+            fake, real = to_image(frame[0]), np.asarray(self.target.frames[t])
+            return ssim(fake, real), psnr(fake, real)
+        base_high = to_tensor(prior[..., :3])[None].to(self.device)
+        high = to_image(carry_correction(frame.float(), blend_base(label, True), base_high)[0])
+        bank = self.target.bank
+        return box_scores(high, np.asarray(bank.frames[t]), bank.keypoints[t])
 
     def _log_validation(self) -> dict[str, float]:
         """This step's validation scores, computed and logged once (a budget of no step validates step 0 once)."""

@@ -292,14 +292,20 @@ class FramePairs(Dataset):
 
     def item(self, t: int, renderer: PriorRenderer | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         """Condition and frame of frame ``t``; ``renderer`` carries the retrieval over from the previous frame."""
+        return self.sample(t, renderer)[:2]
+
+    def sample(self, t: int, renderer: PriorRenderer | None = None
+               ) -> tuple[torch.Tensor, torch.Tensor, np.ndarray | None]:
+        """:meth:`item`'s condition and frame, and the ``[h2, w2, 4]`` uint8 warped prior at the bank's size it was
+        made from (:func:`prior_images`; None without a bank)."""
         target = self.target
-        prior = None
+        high = low = None
         if target.bank is not None:
             size = (target.framings[t].out_width, target.framings[t].out_height)
-            prior = prior_images(renderer or target.renderer(), target.poses.keypoints[t], target.bank_framings[t],
-                                 target.plate, size, frame=t)[1]
-        label = condition(target.poses.keypoints[t], target.framings[t], target.plate, prior)
-        return to_tensor(label), to_tensor(target.frames[t])
+            high, low = prior_images(renderer or target.renderer(), target.poses.keypoints[t], target.bank_framings[t],
+                                     target.plate, size, frame=t)
+        label = condition(target.poses.keypoints[t], target.framings[t], target.plate, low)
+        return to_tensor(label), to_tensor(target.frames[t]), high
 
     def __getitem__(self, i: int) -> tuple[torch.Tensor, ...]:
         t = self.starts[i]

@@ -373,6 +373,13 @@ def repair(raw: torch.Tensor, base: torch.Tensor) -> torch.Tensor:
     return base + REPAIR_RANGE * raw
 
 
+def carry_correction(frame: torch.Tensor, base: torch.Tensor, base_high: torch.Tensor) -> torch.Tensor:
+    """A repaired ``[B, 3, h, w]`` frame's correction (``frame - base``, ``base`` the prior it repaired) upsampled
+    bilinearly onto the same prior at a larger size, ``base_high`` ``[B, 3, H, W]``: the frame at that size."""
+    correction = F.interpolate(frame - base, size=base_high.shape[2:], mode="bilinear", align_corners=False)
+    return base_high + correction
+
+
 # A pixel is foreground where the real frame differs from the plate by this much (0-255 scale: ~25 grey levels)
 # in some channel: above the plate's own error (a median of frames) and the video's noise.
 FOREGROUND_THRESHOLD = 0.2

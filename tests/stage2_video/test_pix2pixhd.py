@@ -6,6 +6,7 @@ from stage2_video.models.pix2pixhd import (
     LocalEnhancer,
     Pix2PixHD,
     Pix2PixHDConfig,
+    carry_correction,
     condition_channels,
     feature_matching_loss,
     foreground_target,
@@ -97,6 +98,16 @@ def test_a_residual_model_starts_at_the_prior_and_learns_a_correction():
     with pytest.raises(DancesynthError, match="lambda_mask"):
         _tiny(background=True, blend=True, prior=True, residual=True)
 
+
+def test_a_correction_is_carried_onto_the_prior_at_the_output_size():
+    base_high = torch.rand(1, 3, 64, 64) * 2 - 1
+    base = torch.nn.functional.interpolate(base_high, size=(32, 32), mode="area")
+    assert torch.equal(carry_correction(base, base, base_high), base_high)  # no correction: the prior's detail
+    frame = base.clone()
+    frame[:, 0] += 0.5  # redder everywhere at the model's size
+    high = carry_correction(frame, base, base_high)
+    assert torch.allclose(high[:, 0], base_high[:, 0] + 0.5, atol=1e-6)
+    assert torch.allclose(high[:, 1:], base_high[:, 1:], atol=1e-6)
 
 def test_size_must_divide_by_downsampling():
     with pytest.raises(DancesynthError, match="divisible by 8"):
