@@ -69,6 +69,11 @@ TORSO_ARM_COST = 0.3
 UPPER_ARM_BONES = (6, 8)
 # A frame chosen for the previous pose is kept while its cost is within this of the best (squared torso lengths).
 HYSTERESIS = 0.15
+# Weight of the distance between where the person stands in the scene (mid-hips, canvas pixels) in a bank frame and
+# in the pose to render, squared, in the rendered pose's torso lengths: the light on a person changes across a scene
+# (sports2d: backlit with the sun behind him on the box, in sunlight on the grass), and by pose alone the frames on
+# the box served the grass too, a pale grey ghost with the sun's flare. Chosen on the training range (docs/methods).
+PLACE_COST = 0.2
 # Retrieval cost of a bank frame whose forearm or hand lies on a group's parts (it would cover them), per point,
 # at full overlap; and how near (torso lengths) to a group's bones a point starts to count: face and torso centre,
 # legs.
@@ -195,6 +200,25 @@ def descriptor(keypoints: np.ndarray) -> Description:
     offsets = (kp[..., list(FACE_POINTS), :2] - nose[..., None, :2]) / np.maximum(head, 1e-6)[..., None, None]
     return (np.where(present[..., None], vectors, 0.0).astype(np.float32), present, face,
             np.where(face[..., None], offsets, 0.0).astype(np.float32))
+
+
+def scene_places(keypoints: np.ndarray) -> np.ndarray:
+    """``[..., 25, 3]`` poses -> ``[..., 2]`` where each person stands, in the poses' pixels: the mid-hip, or
+    without it the mean of the seen joints (NaN without any)."""
+    kp = np.asarray(keypoints, np.float32)
+    seen = kp[..., 2] >= MIN_CONFIDENCE
+    with np.errstate(invalid="ignore"):
+        mean = (kp[..., :2] * seen[..., None]).sum(-2) / seen.sum(-1)[..., None]
+    return np.where((kp[..., ROOT, 2] >= MIN_CONFIDENCE)[..., None], kp[..., ROOT, :2], mean)
+
+
+def place_costs(places: np.ndarray, query: np.ndarray) -> np.ndarray:
+    """``[N]`` retrieval cost of bank frames whose people stand at ``places`` (``[N, 2]``, :func:`scene_places`) for
+    one ``[25, 3]`` query pose in the same pixels: :data:`PLACE_COST` per squared torso length of the query between
+    the two places; 0 where either is unknown."""
+    here, torso = scene_places(query), torso_lengths(query)
+    cost = PLACE_COST * (((places - here) / torso) ** 2).sum(-1)
+    return np.nan_to_num(cost, nan=0.0)
 
 
 def _distance_to_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -503,10 +527,12 @@ class FrameBank:
         cache_size: source frames kept cut into parts (cutting costs a few milliseconds).
         candidates: how many retrieved frames make one prior (odd): the per-pixel median of their warps
             (:class:`PriorRenderer`).
+        scene: ``[T, 25, 3]`` the frames' poses in the video's pixels, where retrieval compares the places people
+            stand at (:func:`place_costs`; None: it does not).
     """
 
     def __init__(self, frames: np.ndarray, masks: np.ndarray, keypoints: np.ndarray, members: np.ndarray,
-                 cache_size: int = 512, candidates: int = 1) -> None:
+                 cache_size: int = 512, candidates: int = 1, scene: np.ndarray | None = None) -> None:
         if candidates < 1 or candidates % 2 == 0:
             raise ValueError(f"the prior's candidates must be an odd count, got {candidates}")
         self.frames, self.masks = frames, masks
@@ -516,6 +542,7 @@ class FrameBank:
         self.size = (frames.shape[2], frames.shape[1])
         self.described = descriptor(self.keypoints[self.members])
         self.overlaps = hand_overlaps(self.keypoints[self.members])
+        self.places = None if scene is None else scene_places(np.asarray(scene)[self.members])
         self._sources: OrderedDict[int, Source] = OrderedDict()
         self._cache_size = cache_size
 
@@ -538,22 +565,26 @@ class FrameBank:
         return source
 
     def retrieve(self, query: np.ndarray, exclude: tuple[int, int] | None = None,
-                 previous: dict[str, int] | None = None) -> dict[str, int]:
+                 previous: dict[str, int] | None = None, scene: np.ndarray | None = None) -> dict[str, int]:
         """The bank frame (video frame index) of each group for one ``[25, 3]`` pose (bank pixels).
 
         ``exclude``: a ``[start, stop)`` range of frame indices never returned (when it covers the whole bank, only
         the frames farthest from its centre are allowed); ``previous``: last choices, kept while within
-        :data:`HYSTERESIS` of the best.
+        :data:`HYSTERESIS` of the best; ``scene``: the same pose in the video's pixels, to prefer frames where the
+        person stood near it (with the bank's ``scene``).
         """
-        return self.choices(query, 1, exclude, previous)[0]
+        return self.choices(query, 1, exclude, previous, scene)[0]
 
     def choices(self, query: np.ndarray, count: int, exclude: tuple[int, int] | None = None,
-                previous: dict[str, int] | None = None) -> list[dict[str, int]]:
+                previous: dict[str, int] | None = None, scene: np.ndarray | None = None) -> list[dict[str, int]]:
         """Up to ``count`` choices of a bank frame per group for one ``[25, 3]`` pose (bank pixels): the first is
-        :meth:`retrieve`'s (``exclude`` and ``previous`` as there), the k-th next takes each group's k-th nearest
-        other frame (fewer when fewer frames are allowed)."""
+        :meth:`retrieve`'s (``exclude``, ``previous`` and ``scene`` as there), the k-th next takes each group's k-th
+        nearest other frame (fewer when fewer frames are allowed)."""
         costs = group_costs(self.described, query)
         occlusion = occlusion_costs(self.overlaps, query)
+        if self.places is not None and scene is not None:
+            place = place_costs(self.places, scene)
+            costs = {group: cost + place for group, cost in costs.items()}
         allowed = np.ones(len(self.members), bool)
         if exclude is not None:
             allowed = (self.members < exclude[0]) | (self.members >= exclude[1])
@@ -593,14 +624,15 @@ class PriorRenderer:
         self.exclude_frames = exclude_frames
         self.previous: dict[str, int] | None = None
 
-    def __call__(self, target: np.ndarray, plate_crop: np.ndarray, frame: int | None = None) -> np.ndarray:
+    def __call__(self, target: np.ndarray, plate_crop: np.ndarray, frame: int | None = None,
+                 scene: np.ndarray | None = None) -> np.ndarray:
         """``[H, W, 4]`` uint8: the person warped onto ``target`` (``[25, 3]`` bank pixels) over ``plate_crop``
         (``[H, W, 3]`` uint8, bank size), and the warp's alpha. ``frame``: the video frame being learnt, whose
-        neighbourhood is excluded."""
+        neighbourhood is excluded; ``scene``: the pose in the video's pixels (:meth:`FrameBank.choices`)."""
         exclude = None
         if frame is not None and self.exclude_frames is not None:
             exclude = (frame - self.exclude_frames, frame + self.exclude_frames + 1)
-        chosen = self.bank.choices(target, self.bank.candidates, exclude, self.previous)
+        chosen = self.bank.choices(target, self.bank.candidates, exclude, self.previous, scene)
         self.previous = chosen[0]
         warps = [self.bank.warp(choice, target) for choice in chosen]
         prior = np.empty(plate_crop.shape[:2] + (4,), np.uint8)

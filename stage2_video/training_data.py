@@ -233,7 +233,7 @@ def frame_bank(frames: np.ndarray, masks: np.ndarray, poses: PoseSequence, bank_
         raise DancesynthError("The person is found in too few frames of the target video to learn from; use a "
                               "video where one person stays fully visible.")
     return FrameBank(frames, masks, bank_keypoints(poses.keypoints, bank_framing.frames(poses)), np.array(kept),
-                     candidates=candidates)
+                     candidates=candidates, scene=poses.keypoints)
 
 
 def prior_images(renderer: PriorRenderer, keypoints: np.ndarray, bank_framing: Framing, plate: np.ndarray,
@@ -243,7 +243,7 @@ def prior_images(renderer: PriorRenderer, keypoints: np.ndarray, bank_framing: F
     the same resized to ``model_size`` (width, height). ``frame``: the video frame being learnt (excluded)."""
     target = bank_framing.points(np.asarray(keypoints, np.float32)[:, :2])
     pose = np.c_[target, np.asarray(keypoints, np.float32)[:, 2]]
-    high = renderer(pose, bank_framing.image(plate), frame)
+    high = renderer(pose, bank_framing.image(plate), frame, np.asarray(keypoints, np.float32))
     return high, cv2.resize(high, model_size, interpolation=cv2.INTER_AREA)
 
 

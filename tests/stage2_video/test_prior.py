@@ -197,6 +197,27 @@ def test_retrieval_ignores_position_and_scale_and_never_returns_excluded_frames(
     assert set(bank.retrieve(poses[30], (-100, 100)).values()) <= {0, 59}
 
 
+def test_among_like_poses_retrieval_takes_the_frame_where_the_person_stood_nearest():
+    pose = arms_out(standing_pose())
+    poses = np.repeat(pose[None], 2, axis=0)
+    scene = poses.copy()
+    scene[1, :, 0] += 300  # frame 1: the same pose, far to the right in the scene (another light)
+    frames = np.zeros((2, 8, 8, 3), np.uint8)
+    bank = FrameBank(frames, np.zeros((2, 8, 8), np.uint8), poses, np.arange(2), scene=scene)
+    there = pose.copy()
+    there[:, 0] += 280
+    assert set(bank.retrieve(pose, scene=pose).values()) == {0}
+    assert set(bank.retrieve(pose, scene=there).values()) == {1}
+    # A clearly better pose still wins over a place a torso length nearer (32 pixels).
+    bent, near = poses.copy(), scene.copy()
+    bent[1] = near[1] = standing_pose()
+    near[1, :, 0] += 32
+    bank = FrameBank(frames, np.zeros((2, 8, 8), np.uint8), bent, np.arange(2), scene=near)
+    there = pose.copy()
+    there[:, 0] += 32
+    assert bank.retrieve(pose, scene=there)["right arm"] == 0
+
+
 def test_retrieval_prefers_frames_whose_hands_cover_no_part():
     open_arms = arms_out(standing_pose())
     hand_on_face = open_arms.copy()

@@ -142,8 +142,8 @@ def test_a_model_renders_its_own_training_frames_as_training_warps_them(tiny_tar
     window = round(EXCLUDE_SECONDS * seq.fps)
     choices, chosen = model.bank.choices, []
 
-    def spy(query, count, exclude=None, previous=None):
-        chosen.append((exclude, choices(query, count, exclude, previous)))
+    def spy(query, count, exclude=None, previous=None, scene=None):
+        chosen.append((exclude, choices(query, count, exclude, previous, scene)))
         return chosen[-1][1]
 
     model.bank.choices = spy
