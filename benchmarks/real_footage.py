@@ -23,7 +23,7 @@ the real poses and composited into the full frame, on "dance frames": held-out f
 differs from the clip's median pose by more than ``DANCE_DISTANCE`` torso lengths per joint on average (standing
 still scores the plate's and the network's easy case). Printed per row: PCK@0.1 and @0.2 (BlazePose run on the
 composited frame against the real pose, torso-normalised), SSIM and PSNR inside the real person's box
-(:func:`stage2_video.quality.person_box`), training minutes, steps, the step kept (whose weights render: the best
+(:func:`stage2_video.quality.scoring_box`), training minutes, steps, the step kept (whose weights render: the best
 on the trainer's selection frames) and steps/s, the warp's milliseconds per frame, and for ``trained`` the
 frames/s of `dance`'s frame loop with the cached model on a ``--dance-seconds`` segment of a real song. PCK is
 partly circular for a warp (its joints land on the target by construction): read it with the image measures.
@@ -181,7 +181,8 @@ def score(row: str, frames: list[np.ndarray], reals: list[np.ndarray], commanded
     the dance frames)."""
     found = extracted(frames, commanded.fps)
     hit = np.array(dancing)
-    ssims, psnrs = np.array([box_scores(f, r, k) for f, r, k in zip(frames, reals, commanded.keypoints)]).T
+    ssims, psnrs = np.array([box_scores(f, r, k) for f, r, k in zip(frames, reals, commanded.keypoints)],
+                            float).reshape(-1, 2).T
     subset = np.flatnonzero(hit)
     dance_found, dance_poses = found.replace(found.keypoints[subset]), commanded.replace(commanded.keypoints[subset])
     return Scored(row, [frames[i] for i in subset], pck(found, commanded, 0.1), pck(dance_found, dance_poses, 0.1),

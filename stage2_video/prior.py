@@ -203,19 +203,16 @@ def descriptor(keypoints: np.ndarray) -> Description:
 
 
 def scene_places(keypoints: np.ndarray) -> np.ndarray:
-    """``[..., 25, 3]`` poses -> ``[..., 2]`` where each person stands, in the poses' pixels: the mid-hip, or
-    without it the mean of the seen joints (NaN without any)."""
+    """``[..., 25, 3]`` poses -> ``[..., 2]`` where each person stands, in the poses' pixels: the mid-hip (NaN where
+    it is not seen)."""
     kp = np.asarray(keypoints, np.float32)
-    seen = kp[..., 2] >= MIN_CONFIDENCE
-    with np.errstate(invalid="ignore"):
-        mean = (kp[..., :2] * seen[..., None]).sum(-2) / seen.sum(-1)[..., None]
-    return np.where((kp[..., ROOT, 2] >= MIN_CONFIDENCE)[..., None], kp[..., ROOT, :2], mean)
+    return np.where((kp[..., ROOT, 2] >= MIN_CONFIDENCE)[..., None], kp[..., ROOT, :2], np.nan)
 
 
 def place_costs(places: np.ndarray, query: np.ndarray) -> np.ndarray:
     """``[N]`` retrieval cost of bank frames whose people stand at ``places`` (``[N, 2]``, :func:`scene_places`) for
     one ``[25, 3]`` query pose in the same pixels: :data:`PLACE_COST` per squared torso length of the query between
-    the two places; 0 where either is unknown."""
+    the two places; 0 where either place or the query's torso is unknown."""
     here, torso = scene_places(query), torso_lengths(query)
     cost = PLACE_COST * (((places - here) / torso) ** 2).sum(-1)
     return np.nan_to_num(cost, nan=0.0)

@@ -1,8 +1,8 @@
 """Quality of generated frames: image similarity to held-out real frames and pose consistency.
 
 * SSIM and PSNR (dB) between a generated and the real frame (``skimage.metrics``, data range 255, RGB), over the
-  whole frame or inside the person's box (:func:`person_box`, :func:`box_scores`: what the real-footage benchmark
-  reports and the trainer selects checkpoints by).
+  whole frame or inside the person's box (:func:`scoring_box`, :func:`box_scores`: what the real-footage benchmark
+  reports and, on the prior-size crop before compositing, what the trainer selects checkpoints by).
 * PCK@alpha: share of the commanded pose's visible joints that the pose re-extracted from the generated frame
   puts within ``alpha`` x torso size (Neck-MidHip distance of the commanded pose, per frame); joints the
   extractor misses count as wrong.
@@ -18,6 +18,8 @@ from dancesynth.core.skeleton import NECK, ROOT, PoseSequence
 MIN_CONFIDENCE = 0.05
 # The person's box: the pose's joints' box grown by this share of its longer side.
 BOX_MARGIN = 0.15
+# skimage's SSIM window (pixels): a smaller image has no SSIM.
+SSIM_WINDOW = 7
 
 
 def ssim(generated: np.ndarray, real: np.ndarray) -> float:
@@ -32,22 +34,26 @@ def psnr(generated: np.ndarray, real: np.ndarray) -> float:
     return float(peak_signal_noise_ratio(real, generated, data_range=255))
 
 
-def person_box(keypoints: np.ndarray, width: int, height: int) -> tuple[int, int, int, int]:
+def scoring_box(keypoints: np.ndarray, width: int, height: int) -> tuple[int, int, int, int]:
     """``(x0, y0, x1, y1)`` pixels: the box of one ``[25, 3]`` pose's joints (pixels of a ``width x height`` frame)
-    grown by :data:`BOX_MARGIN` of its longer side, clipped to the frame; the whole frame without a joint."""
+    grown by :data:`BOX_MARGIN` of its longer side, clipped to the frame; the whole frame without a joint or where
+    the box inside the frame is narrower than SSIM's 7-pixel window."""
     seen = keypoints[:, 2] >= MIN_CONFIDENCE
     if not seen.any():
         return 0, 0, width, height
     lo, hi = keypoints[seen, :2].min(0), keypoints[seen, :2].max(0)
     grow = BOX_MARGIN * float((hi - lo).max())
-    x0, y0 = (int(max(0, v - grow)) for v in lo)
-    return x0, y0, int(min(width, hi[0] + grow + 1)), int(min(height, hi[1] + grow + 1))
+    x0, y0 = (int(min(max(0, v - grow), limit)) for v, limit in zip(lo, (width, height)))
+    x1, y1 = int(min(width, max(0, hi[0] + grow + 1))), int(min(height, max(0, hi[1] + grow + 1)))
+    if x1 - x0 < SSIM_WINDOW or y1 - y0 < SSIM_WINDOW:
+        return 0, 0, width, height
+    return x0, y0, x1, y1
 
 
 def box_scores(generated: np.ndarray, real: np.ndarray, keypoints: np.ndarray) -> tuple[float, float]:
-    """(SSIM, PSNR dB) of two ``[H, W, 3]`` uint8 frames inside the :func:`person_box` of ``keypoints`` (the real
+    """(SSIM, PSNR dB) of two ``[H, W, 3]`` uint8 frames inside the :func:`scoring_box` of ``keypoints`` (the real
     frame's ``[25, 3]`` pose in its pixels)."""
-    x0, y0, x1, y1 = person_box(keypoints, real.shape[1], real.shape[0])
+    x0, y0, x1, y1 = scoring_box(keypoints, real.shape[1], real.shape[0])
     a, b = generated[y0:y1, x0:x1], real[y0:y1, x0:x1]
     return ssim(a, b), psnr(a, b)
 

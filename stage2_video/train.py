@@ -71,6 +71,10 @@ from stage2_video.training_data import (
 from stage2_video.vgg import VGGLoss, build_vgg_loss
 
 METHOD = "pix2pixhd"
+# What a kept checkpoint's select_ssim measures for a model repairing the warped prior: since 2026-12-06 the
+# person's box at the output's size (before, the whole crop at the model's size; not comparable, so a run resumed
+# from then scores its kept weights again).
+SCORE_MEASURE = "person box at output size"
 
 
 @dataclass
@@ -277,8 +281,8 @@ class VideoTrainer:
                       prior: np.ndarray | None) -> tuple[float, float]:
         """(SSIM, PSNR) of the model's ``[1, 3, H, W]`` ``frame`` for frame ``t``: for a model that repairs the warped
         prior, at the size it renders (its correction carried onto the bank-size ``prior``) inside the person's box,
-        as the real-footage benchmark scores it (the whole crop at the model's size favoured steps that smoothed the
-        person); otherwise over the model's frame."""
+        as the real-footage benchmark scores the composited frame (the whole crop at the model's size favoured steps
+        that smoothed the person); otherwise over the model's frame."""
         if prior is None or not self.config.repairs:
             fake, real = to_image(frame[0]), np.asarray(self.target.frames[t])
             return ssim(fake, real), psnr(fake, real)
@@ -299,8 +303,20 @@ class VideoTrainer:
         """Remember this step's weights when they score best so far on the selection frames."""
         score = scores.get("select_ssim", math.nan)
         if not math.isnan(score) and (self.best is None or score > self.best["select_ssim"]):
-            self.best = {"step": self.step, **scores}
+            self.best = {"step": self.step, **scores} | ({"measure": SCORE_MEASURE} if self.config.repairs else {})
             self.best_weights = {k: v.detach().to("cpu", copy=True) for k, v in self.model.state_dict().items()}
+
+    def _rescore_best(self) -> None:
+        """Score the kept weights again as checkpoints are scored now (a run saved before :data:`SCORE_MEASURE`)."""
+        latest = {k: v.detach().clone() for k, v in self.model.state_dict().items()}
+        step, self.step = self.step, int(self.best["step"])  # step 0 renders the warp alone
+        self.model.load_state_dict(self.best_weights)
+        try:
+            scores = self.validate()
+        finally:
+            self.model.load_state_dict(latest)
+            self.step = step
+        self.best = {"step": int(self.best["step"]), **scores, "measure": SCORE_MEASURE}
 
     @torch.no_grad()
     def write_samples(self, count: int = 3) -> None:
@@ -372,6 +388,9 @@ class VideoTrainer:
             self.epoch, self.position, self.step, total = (int(meta[key]) for key in
                                                            ("epoch", "position", "step", "total_epochs"))
         self.total_epochs = self.options.epochs or total
+        if self.best is not None and self.config.repairs and self.folder.writer and \
+                self.best.get("measure") != SCORE_MEASURE:
+            self._rescore_best()
 
 
 def train_video(video: str | os.PathLike, run_dir: str | os.PathLike, preset_name: str = "small",

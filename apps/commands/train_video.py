@@ -18,7 +18,8 @@ target person. Poses are extracted from the video with the bundled BlazePose and
 is held out: RUN_DIR/validation.csv reports SSIM / PSNR on it at every checkpoint, RUN_DIR/samples/ has PNG
 grids (real | skeleton | generated), RUN_DIR/losses.csv and losses.png the losses. With the warped prior (small,
 medium) the 10 % before it is not learnt from either: it scores every checkpoint (select_ssim), the prior alone
-included, and the model renders with the best, so training that makes the person worse is not used.
+included, and the model renders with the best, so training that makes the person worse is not used; these models
+are scored as they render, at the output's size, inside the person's box.
 
 Stops with a checkpoint when the run has trained --minutes in all (every call together) or --epochs, and on
 Ctrl-C or SIGTERM; --resume continues exactly where it stopped.

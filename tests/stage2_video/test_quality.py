@@ -1,6 +1,6 @@
 import numpy as np
 
-from stage2_video.quality import BOX_MARGIN, box_scores, person_box
+from stage2_video.quality import BOX_MARGIN, box_scores, scoring_box
 
 
 def _pose(points: list[tuple[float, float]]) -> np.ndarray:
@@ -10,12 +10,14 @@ def _pose(points: list[tuple[float, float]]) -> np.ndarray:
     return keypoints
 
 
-def test_the_person_box_is_the_joints_box_grown_and_clipped():
+def test_the_scoring_box_is_the_joints_box_grown_and_clipped():
     pose = _pose([(40, 20), (60, 120)])  # 20 x 100 px
     grow = BOX_MARGIN * 100
-    assert person_box(pose, 200, 200) == (int(40 - grow), int(20 - grow), int(60 + grow + 1), int(120 + grow + 1))
-    assert person_box(pose, 50, 100) == (int(40 - grow), int(20 - grow), 50, 100)
-    assert person_box(np.zeros((25, 3), np.float32), 50, 100) == (0, 0, 50, 100)
+    assert scoring_box(pose, 200, 200) == (int(40 - grow), int(20 - grow), int(60 + grow + 1), int(120 + grow + 1))
+    assert scoring_box(pose, 50, 100) == (int(40 - grow), int(20 - grow), 50, 100)
+    assert scoring_box(np.zeros((25, 3), np.float32), 50, 100) == (0, 0, 50, 100)
+    off_frame = _pose([(300, 20), (320, 120)])  # a pose beside the frame: no box of its own
+    assert scoring_box(off_frame, 200, 200) == (0, 0, 200, 200)
 
 
 def test_box_scores_see_only_the_person():

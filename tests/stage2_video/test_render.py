@@ -144,11 +144,15 @@ def test_a_model_renders_its_own_training_frames_as_training_warps_them(tiny_tar
 
     def spy(query, count, exclude=None, previous=None, scene=None):
         chosen.append((exclude, choices(query, count, exclude, previous, scene)))
+        scenes.append(scene)
         return chosen[-1][1]
 
+    scenes = []
     model.bank.choices = spy
     list(render_layers(model, seq, first_frame=4))
     assert [e for e, _ in chosen] == [(t - window, t + window + 1) for t in range(4, 8)]
+    # retrieval compares places in the video's pixels: the poses as given, not as framed
+    np.testing.assert_array_equal(np.stack(scenes), seq.keypoints)
     chosen.clear()
     list(render_layers(model, seq))  # rendering a new dance may take any bank frame
     assert all(e is None for e, _ in chosen)

@@ -10,8 +10,11 @@ from dancesynth.core.draw import draw_pose
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import write_video
 from dancesynth.core.skeleton import PoseSequence
+from stage2_video import train as train_module
+from stage2_video.quality import box_scores
 from stage2_video.render import load_appearance_model
-from stage2_video.train import TrainOptions, VideoTrainer, train_video
+from stage2_video.train import TrainOptions, VideoTrainer, train_video, video_trainer
+from stage2_video.training_data import FramePairs
 
 
 def _rows(path):
@@ -109,6 +112,37 @@ def test_training_that_scores_below_the_warp_alone_renders_the_warp(tiny_target,
                        poses=poses, device="cpu", overrides=tiny_config)
     assert meta["step"] == 5 and meta["best"]["step"] == 0
     assert load_appearance_model(run, "cpu").generator is None
+
+
+def test_checkpoints_are_scored_as_they_render_in_the_persons_box(tiny_target, tiny_config, tmp_path):
+    video, poses = tiny_target
+    trainer = video_trainer(video, tmp_path, "small", TrainOptions(minutes=0, val_frames=3), poses=poses,
+                            device="cpu", overrides=tiny_config)
+    target, frames = trainer.target, trainer.select_range
+    pairs, renderer = FramePairs(target, frames), target.renderer()
+    picks = [t for t in frames if target.usable[t]][:3]
+    # before training the model renders the warp at the bank's size: that, in the person's box, is the score
+    expected = np.mean([box_scores(pairs.sample(t, renderer)[2][..., :3], np.asarray(target.bank.frames[t]),
+                                   target.bank.keypoints[t]) for t in picks], axis=0)
+    scores = trainer.validate()
+    assert (scores["select_ssim"], scores["select_psnr"]) == pytest.approx(tuple(expected))
+
+
+def test_a_run_saved_before_the_box_measure_scores_its_kept_checkpoint_again(tiny_target, tiny_config, tmp_path,
+                                                                             monkeypatch):
+    video, poses = tiny_target
+    opts = dict(val_frames=2, sample_every=1000, checkpoint_every=3)
+    with monkeypatch.context() as old:
+        old.setattr(train_module, "SCORE_MEASURE", "whole crop at model size")
+        _scripted_selection(old, {0: 0.99, 3: 0.5})  # the old measure's scale: later steps could never beat it
+        train_video(video, tmp_path, "small", TrainOptions(epochs=1, max_steps=3, **opts), poses=poses,
+                    device="cpu", overrides=tiny_config)
+    meta = train_video(video, tmp_path, "small", TrainOptions(epochs=1, max_steps=2, **opts), resume=True,
+                       poses=poses, device="cpu")
+    best = meta["best"]
+    assert best["measure"] == train_module.SCORE_MEASURE and best["select_ssim"] < 0.99
+    rows = {r["step"]: float(r["select_ssim"]) for r in _rows(tmp_path / "validation.csv")}
+    assert best["select_ssim"] == pytest.approx(max(rows["5"], best["select_ssim"]))
 
 
 def test_bad_inputs_are_user_errors(tiny_target, tmp_path):
