@@ -241,9 +241,9 @@ def prior_images(renderer: PriorRenderer, keypoints: np.ndarray, bank_framing: F
     """The warped prior of one ``[25, 3]`` pose (canvas pixels) framed by ``bank_framing``, over that framing's
     crop of the ``[H, W, 3]`` ``plate``: ``[h2, w2, 4]`` uint8 at the bank's size (RGB over the plate, alpha) and
     the same resized to ``model_size`` (width, height). ``frame``: the video frame being learnt (excluded)."""
-    target = bank_framing.points(np.asarray(keypoints, np.float32)[:, :2])
-    pose = np.c_[target, np.asarray(keypoints, np.float32)[:, 2]]
-    high = renderer(pose, bank_framing.image(plate), frame, np.asarray(keypoints, np.float32))
+    scene = np.asarray(keypoints, np.float32)
+    pose = np.c_[bank_framing.points(scene[:, :2]), scene[:, 2]]
+    high = renderer(pose, bank_framing.image(plate), frame, scene)
     return high, cv2.resize(high, model_size, interpolation=cv2.INTER_AREA)
 
 
