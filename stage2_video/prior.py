@@ -18,10 +18,13 @@ retrieval). Here, for every pose to render:
    torso, upper arms, forearms, hands, thighs, shins and feet by the nearest drawn bone (a hand belongs to
    its arm even where it rests on the torso or a thigh); torso pixels hidden by an arm are filled in from around
    them.
-3. **Warping** (:func:`warp_parts`): the torso moves by the least-squares similarity of its six joints; each limb
-   part by the affine that takes its source bone onto the target bone (stretched along the bone, the torso's scale
-   across it); head and feet by the least-squares rotation and translation of their points (face and neck; ankle,
-   toes and heel), hands by a similarity about the wrist, all with the torso's scale. Parts are
+3. **Warping** (:func:`warp_parts`): each pose's size is measured by its longest bones against the bank's
+   (:func:`body_scale`: foreshortening only shortens a bone), and the ratio of the two sizes scales every part.
+   The torso is stretched along its spine (neck to mid-hip) onto the target's and scaled by that ratio across it;
+   each limb part by the affine that takes its source bone onto the target
+   bone (stretched along the bone, the ratio across it); head and feet by the least-squares rotation and
+   translation of their points (face and neck; ankle, toes and heel), hands by a similarity about the wrist, all
+   at the ratio. Parts are
    painted back to front (torso, legs, head, arms, hands), giving an RGB + alpha image over the plate crop: the
    generator's "warped prior" (or the per-pixel median of several retrieved frames' warps, :class:`PriorRenderer`).
 
@@ -39,7 +42,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from dancesynth.core.skeleton import JOINT_INDEX, NECK, ROOT
+from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX, NECK, ROOT
 from stage2_video.framing import MIN_CONFIDENCE, Framing, VideoFraming
 
 J = JOINT_INDEX
@@ -153,6 +156,16 @@ GROUP_BONES: dict[str, tuple[int, ...]] = {
 GROUPS = tuple(GROUP_BONES)
 # A limb may stretch along its bone to at most this factor of the torso's scale (a foreshortened source limb).
 MAX_STRETCH = 2.5
+# The body's bones by which a pose's size is measured (BODY25_LIMBS up to neck-nose: torso, shoulders, arms, hips,
+# legs, neck); the face's and feet's are too short to tell a size by.
+SCALE_BONES = np.arange(14)
+# A bone's reference length is this percentile of its lengths in the bank: its length across the image.
+REFERENCE_PERCENTILE = 90
+# A pose's size is its bones' (length / reference) ratios ranked from the largest, this one taken (1-based), when at
+# least SCALE_MIN_BONES are seen: a bone pointing at the camera only shortens, and one misplaced joint only
+# lengthens one or two.
+SCALE_RANK = 2
+SCALE_MIN_BONES = 3
 # Radius (torso lengths) of the disc at each shoulder that the torso's region also covers.
 SHOULDER_RADIUS = 0.15
 # A rigid part is placed by its own features (the face's points) when at least this many are seen in both poses.
@@ -165,6 +178,35 @@ NO_PART = 255
 def scaled_framing(framing: VideoFraming, scale: int) -> VideoFraming:
     """The same crop box(es) resized to ``scale`` times the model image (bank and output pixels)."""
     return dataclasses.replace(framing, out_width=framing.out_width * scale, out_height=framing.out_height * scale)
+
+
+def reference_lengths(keypoints: np.ndarray) -> np.ndarray:
+    """``[len(SCALE_BONES)]`` each body bone's :data:`REFERENCE_PERCENTILE` length over ``[T, 25, 3]`` poses
+    (pixels; NaN where never seen): the bone's length when it lies across the image, not towards the camera."""
+    lengths = _scale_bone_lengths(keypoints)
+    seen = np.isfinite(lengths).any(0)
+    out = np.full(lengths.shape[-1], np.nan)
+    out[seen] = np.nanpercentile(lengths[:, seen], REFERENCE_PERCENTILE, axis=0)
+    return out
+
+
+def _scale_bone_lengths(keypoints: np.ndarray) -> np.ndarray:
+    """``[..., len(SCALE_BONES)]`` lengths (pixels; NaN where a joint is absent) of ``[..., 25, 3]`` poses."""
+    kp = np.asarray(keypoints, np.float64)
+    parent, child = np.array(BODY25_LIMBS)[SCALE_BONES].T
+    seen = (kp[..., parent, 2] >= MIN_CONFIDENCE) & (kp[..., child, 2] >= MIN_CONFIDENCE)
+    return np.where(seen, np.linalg.norm(kp[..., child, :2] - kp[..., parent, :2], axis=-1), np.nan)
+
+
+def body_scale(keypoints: np.ndarray, reference: np.ndarray) -> float:
+    """The size of one ``[25, 3]`` pose against :func:`reference_lengths` (1: the bank's body across the image):
+    the :data:`SCALE_RANK`-th largest of its bones' length ratios, the largest with fewer than
+    :data:`SCALE_MIN_BONES` seen, NaN with none. A torso bending towards the camera is shorter, not smaller."""
+    ratios = _scale_bone_lengths(keypoints) / reference
+    ratios = np.sort(ratios[np.isfinite(ratios) & (ratios > 0)])[::-1]
+    if not len(ratios):
+        return math.nan
+    return float(ratios[SCALE_RANK - 1] if len(ratios) >= SCALE_MIN_BONES else ratios[0])
 
 
 def torso_lengths(keypoints: np.ndarray) -> np.ndarray:
@@ -393,13 +435,16 @@ def bone_affine(a: np.ndarray, b: np.ndarray, a2: np.ndarray, b2: np.ndarray, ac
     return np.array([[l00, l01, float(a2[0]) - l00 * ax - l01 * ay], [l10, l11, float(a2[1]) - l10 * ax - l11 * ay]])
 
 
-def part_transform(part: Part, src: np.ndarray, dst: np.ndarray, torso_fit: np.ndarray | None) -> np.ndarray | None:
+def part_transform(part: Part, src: np.ndarray, dst: np.ndarray,
+                   torso: tuple[np.ndarray, np.ndarray] | None) -> np.ndarray | None:
     """``[2, 3]`` affine moving ``part`` from pose ``src`` to pose ``dst`` (``[25, 3]`` pixels), or None when a
-    joint it needs is absent in either. ``torso_fit``: the torso's similarity (its scale sizes the other parts)."""
-    if torso_fit is None:
+    joint it needs is absent in either. ``torso``: :func:`torso_moves` (the torso's move, and the similarity whose
+    scale sizes the other parts)."""
+    if torso is None:
         return None
+    move, torso_fit = torso
     if part.bone is None:
-        return torso_fit
+        return move
     a, b = part.bone
     if min(src[a, 2], src[b, 2], dst[a, 2], dst[b, 2]) < MIN_CONFIDENCE:
         return None
@@ -419,13 +464,24 @@ def _turned(vector: np.ndarray, direction: np.ndarray, scale: float) -> np.ndarr
     return direction / norm * (math.hypot(vector[0], vector[1]) * scale)
 
 
-def torso_similarity(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
-    """The torso's ``[2, 3]`` similarity from ``src`` to ``dst`` (``[25, 3]``), None with fewer than 2 shared
-    torso joints."""
+def torso_moves(src: np.ndarray, dst: np.ndarray, scale: float = math.nan
+                ) -> tuple[np.ndarray, np.ndarray] | None:
+    """The torso's ``[2, 3]`` move from pose ``src`` to ``dst`` (``[25, 3]``) and the similarity whose scale sizes
+    the other parts; None with fewer than 2 shared torso joints. ``scale``: the body's size in ``dst`` over that in
+    ``src`` (:func:`body_scale`): the torso is then stretched along its spine (neck to mid-hip) onto the target's
+    and scaled by ``scale`` across it, and the other parts take ``scale``; NaN: the least-squares similarity of the
+    torso's joints does both (its scale shrinks with a torso bending towards the camera, and the head with it)."""
     shared = [j for j in TORSO_JOINTS if src[j, 2] >= MIN_CONFIDENCE and dst[j, 2] >= MIN_CONFIDENCE]
     if len(shared) < 2:
         return None
-    return similarity(src[shared, :2].astype(np.float64), dst[shared, :2].astype(np.float64))
+    points, targets = src[shared, :2].astype(np.float64), dst[shared, :2].astype(np.float64)
+    if not math.isfinite(scale):
+        fit = similarity(points, targets)
+        return fit, fit
+    fit = similarity(points, targets, scale)
+    if min(src[NECK, 2], src[ROOT, 2], dst[NECK, 2], dst[ROOT, 2]) < MIN_CONFIDENCE:
+        return fit, fit
+    return bone_affine(src[NECK, :2], src[ROOT, :2], dst[NECK, :2], dst[ROOT, :2], scale), fit
 
 
 @dataclass
@@ -466,13 +522,16 @@ class Source:
         return self.layers[part]
 
 
-def warp_parts(sources: dict[str, Source], target: np.ndarray, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+def warp_parts(sources: dict[str, Source], target: np.ndarray, size: tuple[int, int],
+               reference: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Paint every part of its group's source onto the ``[25, 3]`` ``target`` pose.
 
     Args:
         sources: the source frame of each retrieval group (:data:`GROUPS`).
         target: the pose to render, in bank pixels.
         size: ``(width, height)`` of the bank image.
+        reference: :func:`reference_lengths` of the bank, by which each pose's size is measured
+            (:func:`body_scale`; None: the torso's similarity sizes the parts).
 
     Returns:
         ``[H, W, 3]`` float32 colour premultiplied by alpha (0-255) and ``[H, W]`` float32 alpha in [0, 1].
@@ -480,10 +539,12 @@ def warp_parts(sources: dict[str, Source], target: np.ndarray, size: tuple[int, 
     width, height = size
     colour = np.zeros((height, width, 3), np.float32)
     alpha = np.zeros((height, width), np.float32)
-    fits = {g: torso_similarity(s.keypoints, target) for g, s in sources.items()}
+    size_of = (lambda kp: body_scale(kp, reference)) if reference is not None else (lambda kp: math.nan)
+    target_size = size_of(target)
+    moves = {g: torso_moves(s.keypoints, target, target_size / size_of(s.keypoints)) for g, s in sources.items()}
     for i, part in enumerate(PARTS):
         source = sources[part.group]
-        m = part_transform(part, source.keypoints, target, fits[part.group])
+        m = part_transform(part, source.keypoints, target, moves[part.group])
         if m is None:
             continue
         cut = source.layer(i)
@@ -540,6 +601,7 @@ class FrameBank:
         self.described = descriptor(self.keypoints[self.members])
         self.overlaps = hand_overlaps(self.keypoints[self.members])
         self.places = None if scene is None else scene_places(np.asarray(scene)[self.members])
+        self.reference = reference_lengths(self.keypoints[self.members])
         self._sources: OrderedDict[int, Source] = OrderedDict()
         self._cache_size = cache_size
 
@@ -603,7 +665,8 @@ class FrameBank:
 
     def warp(self, choice: dict[str, int], target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """:func:`warp_parts` of the chosen frames onto ``target`` (``[25, 3]`` bank pixels)."""
-        return warp_parts({g: self.source(t) for g, t in choice.items()}, np.asarray(target, np.float32), self.size)
+        return warp_parts({g: self.source(t) for g, t in choice.items()}, np.asarray(target, np.float32), self.size,
+                          self.reference)
 
 
 class PriorRenderer:

@@ -16,9 +16,11 @@ from stage2_video.prior import (
     FrameBank,
     PriorRenderer,
     Source,
+    body_scale,
     bone_affine,
     fill_torso,
     part_labels,
+    reference_lengths,
     similarity,
     warp_parts,
 )
@@ -93,6 +95,31 @@ def test_a_body_moved_by_a_known_transform_lands_exactly_where_it_should():
     assert np.abs(colour[inside] - expected[inside]).max() <= 3  # every part moved by the same similarity
     outside = cv2.dilate((expected_alpha > 0).astype(np.uint8), np.ones((7, 7), np.uint8)) == 0
     assert alpha[outside].max() == 0
+
+
+def test_a_torso_bending_towards_the_camera_leaves_the_head_its_size():
+    """Everything above the hips squashed to 0.6 of its height (bending towards the camera): the legs keep the
+    body's size, so the head keeps its own (sized by the torso's similarity, as before, it shrank)."""
+    kp = standing_pose()
+    image, mask = textured_person(kp)
+    labels = part_labels(mask, kp)
+    head = [i for i, part in enumerate(PARTS) if part.name == "head"][0]
+    image[labels == head] = (255, 0, 0)
+    bent = kp.copy()
+    above_hips = bent[:, 1] < bent[J["MidHip"], 1]
+    bent[above_hips, 1] = bent[J["MidHip"], 1] - (bent[J["MidHip"], 1] - bent[above_hips, 1]) * 0.6
+    reference = reference_lengths(kp[None])
+    assert body_scale(kp, reference) == pytest.approx(1.0)
+    assert body_scale(bent, reference) == pytest.approx(1.0, abs=0.05)
+    source = source_of(image, mask, kp)
+
+    def head_area(reference: np.ndarray | None) -> int:
+        colour, _ = warp_parts({g: source for g in GROUPS}, bent, (SIZE, SIZE), reference)
+        return int(((colour[..., 0] > 150) & (colour[..., 1] < 60)).sum())
+
+    own = int((labels == head).sum())
+    assert head_area(reference) == pytest.approx(own, rel=0.1)
+    assert head_area(None) < 0.75 * own
 
 
 def warped_markers(joints: tuple[str, ...], radius: int, target: np.ndarray) -> np.ndarray:
