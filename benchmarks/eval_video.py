@@ -45,10 +45,12 @@ def framed(seq: PoseSequence, framings: list[Framing]) -> PoseSequence:
     return PoseSequence(kp, seq.fps, framings[0].out_width, framings[0].out_height)
 
 
-def extracted(frames: list[np.ndarray], fps: float) -> PoseSequence:
-    """The pose BlazePose finds in ``frames`` (model-image pixels); frames where it finds nobody score as misses."""
+def extracted(frames: list[np.ndarray], fps: float, start: np.ndarray | None = None) -> PoseSequence:
+    """The pose BlazePose finds in ``frames`` (model-image pixels); frames where it finds nobody score as misses.
+    ``start``: the commanded first pose, so the tracker follows whoever stands there (else the largest person near
+    the centre: in a large scene a false find of its first whole-frame search decided every frame after it)."""
     size = (frames[0].shape[1], frames[0].shape[0])
-    found = extract_frames(frames, fps, size, ExtractConfig(max_missing_fraction=1.0), progress=False)
+    found = extract_frames(frames, fps, size, ExtractConfig(max_missing_fraction=1.0), progress=False, start=start)
     # Gap filling gives frames without a detection interpolated joints; here they must count as misses.
     kp = found.poses.keypoints.copy()
     kp[~found.found, :, 2] = 0.0

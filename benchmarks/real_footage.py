@@ -22,7 +22,8 @@ Every row is scored on the held-out last 15 % of the clip (never trained on, nev
 the real poses and composited into the full frame, on "dance frames": held-out frames whose pose has a torso and
 differs from the clip's median pose by more than ``DANCE_DISTANCE`` torso lengths per joint on average (standing
 still scores the plate's and the network's easy case). Printed per row: PCK@0.1 and @0.2 (BlazePose run on the
-composited frame against the real pose, torso-normalised), SSIM and PSNR inside the real person's box
+composited frames against the real poses, torso-normalised; its tracker starts on the first real pose: before
+2026-12-06 it started on whomever its whole-frame search found, once a false find in `sports2d`'s scene), SSIM and PSNR inside the real person's box
 (:func:`stage2_video.quality.scoring_box`), training minutes, steps, the step kept (whose weights render: the best
 on the trainer's selection frames) and steps/s, the warp's milliseconds per frame, and for ``trained`` the
 frames/s of `dance`'s frame loop with the cached model on a ``--dance-seconds`` segment of a real song. PCK is
@@ -179,7 +180,7 @@ def score(row: str, frames: list[np.ndarray], reals: list[np.ndarray], commanded
           dancing: list[bool]) -> Scored:
     """``frames`` against ``reals`` and their poses ``commanded`` (every usable held-out frame; ``dancing`` marks
     the dance frames)."""
-    found = extracted(frames, commanded.fps)
+    found = extracted(frames, commanded.fps, commanded.keypoints[0])
     hit = np.array(dancing)
     ssims, psnrs = np.array([box_scores(f, r, k) for f, r, k in zip(frames, reals, commanded.keypoints)],
                             float).reshape(-1, 2).T

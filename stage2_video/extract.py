@@ -224,10 +224,11 @@ def extract_poses(video: str | os.PathLike, config: ExtractConfig | None = None,
 
 def extract_frames(frames: Iterable[np.ndarray], fps: float, size: tuple[int, int],
                    config: ExtractConfig | None = None, progress: bool = True, total: int | None = None,
-                   source: str = "the input") -> Extraction:
+                   source: str = "the input", start: np.ndarray | None = None) -> Extraction:
     """:func:`extract_poses` on decoded frames (RGB uint8 ``[height, width, 3]``, ``size = (width, height)``).
 
     Used where frames are already in memory (e.g. generated frames), so no lossy re-encoding blurs thin limbs.
+    ``start``: the pose of the person to follow in the first frame (:class:`PersonTracker`).
 
     Raises:
         DancesynthError: the person is absent in more than ``config.max_missing_fraction`` of the frames.
@@ -235,7 +236,7 @@ def extract_frames(frames: Iterable[np.ndarray], fps: float, size: tuple[int, in
     config = config or ExtractConfig()
     raw, found = [], []
     with native_logs_hidden_unless_debug(), BlazePose(config.min_visibility, config.crop_size) as estimator:
-        tracker = PersonTracker(estimator, size[0], size[1], config.tracker)
+        tracker = PersonTracker(estimator, size[0], size[1], config.tracker, start)
         for frame in track(frames, total=total, desc="extracting poses", unit="frame", disable=not progress):
             pose = tracker.step(frame)
             found.append(pose is not None)

@@ -192,13 +192,18 @@ class TrackStats:
 class PersonTracker:
     """Follows one person, frame by frame. Call :meth:`step` once per frame in order."""
 
-    def __init__(self, estimator: PoseEstimator, width: int, height: int, config: TrackerConfig | None = None):
+    def __init__(self, estimator: PoseEstimator, width: int, height: int, config: TrackerConfig | None = None,
+                 start: np.ndarray | None = None):
+        """``start``: the ``[25, 3]`` pose (pixels) of the person to follow, where they stand in the first frame;
+        None (or a pose without a neck): the largest person near the centre (:func:`choose_target`)."""
         self.estimator = estimator
         self.width, self.height = width, height
         self.config = config or TrackerConfig()
         self.stats = TrackStats()
         self._target: _Target | None = None
         self._missing_run = 0
+        if start is not None and torso(np.asarray(start)) is not None and pose_box(np.asarray(start)) is not None:
+            self._accept(np.asarray(start))
 
     def step(self, frame: np.ndarray) -> np.ndarray | None:
         """The target's ``[25, 3]`` pose in an RGB ``[H, W, 3]`` frame (pixels), or ``None`` if not found."""

@@ -114,6 +114,15 @@ def test_crop_follows_the_target_so_a_bigger_person_outside_it_is_never_taken():
     assert all(p is target[t] for t, p in enumerate(run(tracker, 8)))
 
 
+def test_a_start_pose_picks_whom_to_follow_over_a_bigger_person_in_the_centre():
+    target = [person(120 + 10 * t, 180, 30) for t in range(5)]
+    bigger = person(330, 160, 80)
+    scenes = [[bigger, target[t]] for t in range(5)]
+    assert PersonTracker(ScriptedEstimator(scenes), W, H).step(frame(0)) is bigger
+    tracker = PersonTracker(ScriptedEstimator(scenes), W, H, start=target[0])
+    assert all(p is target[t] for t, p in enumerate(run(tracker, 5)))
+
+
 def test_two_equally_prominent_people_are_refused_one_clear_target_is_not():
     twins = [[person(250, 150, 60), person(390, 150, 60)]]
     target_video = TrackerConfig(min_lead=1.25)
