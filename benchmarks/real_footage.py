@@ -23,11 +23,12 @@ the real poses and composited into the full frame, on "dance frames": held-out f
 differs from the clip's median pose by more than ``DANCE_DISTANCE`` torso lengths per joint on average (standing
 still scores the plate's and the network's easy case). Printed per row: PCK@0.1 and @0.2 (BlazePose run on the
 composited frames against the real poses, torso-normalised; its tracker starts on the first real pose: before
-2026-12-06 it started on whomever its whole-frame search found, once a false find in `sports2d`'s scene), SSIM and PSNR inside the real person's box
-(:func:`stage2_video.quality.scoring_box`), training minutes, steps, the step kept (whose weights render: the best
-on the trainer's selection frames) and steps/s, the warp's milliseconds per frame, and for ``trained`` the
-frames/s of `dance`'s frame loop with the cached model on a ``--dance-seconds`` segment of a real song. PCK is
-partly circular for a warp (its joints land on the target by construction): read it with the image measures.
+2026-12-06 it started on whomever its whole-frame search found, once a false find in `sports2d`'s scene), SSIM and
+PSNR inside the real person's box (:func:`stage2_video.quality.scoring_box`), training minutes, steps, the step kept
+(whose weights render: the best on the trainer's selection frames) and steps/s, the warp's milliseconds per frame,
+and for ``trained`` the frames/s of `dance`'s frame loop with the cached model on a ``--dance-seconds`` segment of a
+real song. PCK is partly circular for a warp (its joints land on the target by construction): read it with the image
+measures.
 Writes ``docs/real_footage/<clip>.jpg``: 8 held-out frames, real | warped prior | trained output (| today), and
 8 frames of the clip's person dancing to the song.
 """
