@@ -55,12 +55,13 @@ Beats count from the first to the last moment the audio is within 30 dB of its l
 intros and tails carry no beats (nor downbeats). ``run`` scores each tracker with ``mir_eval.beat`` without
 trimming the first 5 s (``min_beat_time=0``: a dance starts with the song): F-measure (+-70 ms), CMLt and AMLt
 (continuity at the annotated metrical level / at any of double, half or off-beat levels), and the downbeat
-F-measure (``f_measure`` on downbeats, +-70 ms) for trackers that give downbeats (only ``learned``; for the
-others the column is empty, since their beats taken every ``metre`` beats from their best phase would read the
-truth): librosa's default ``beat_track``, the tracker the project used before (low-band onsets under 150 Hz), the
-project's DSP tracker :func:`stage1_pose.beats.beat_times` and the learned tracker
-:func:`stage1_pose.beat_tracking.tracker.track` (network and bar-pointer decoder, trained on the dev half and
-rendered MIDI by ``train_beat_tracker.py``). The tempo for dancing (:func:`stage1_pose.beats.dance_tempo`)
+F-measure (``f_measure`` on downbeats, +-70 ms) for trackers that give downbeats (``learned`` and ``combined``;
+for the others the column is empty, since their beats taken every ``metre`` beats from their best phase would read
+the truth): librosa's default ``beat_track``, the tracker the project used before (low-band onsets under 150 Hz),
+the project's DSP tracker :func:`stage1_pose.beats.beat_times`, the learned tracker (network and bar-pointer
+decoder, trained on the dev half and rendered MIDI by ``train_beat_tracker.py``) and the two combined (the DSP
+beats where the network's activations support them clearly better), both through the product's
+:func:`stage1_pose.beats.song_beats`. The tempo for dancing (:func:`stage1_pose.beats.dance_tempo`)
 is printed with the true tempo, because the F-measure is judged at the annotated beat level.
 """
 
@@ -511,17 +512,19 @@ def _trackers() -> dict[str, Tracker]:
     """Name -> tracker giving (beat times, downbeat times or None) in seconds of a mono song at ``sr`` Hz."""
     import librosa
 
-    from stage1_pose.beat_tracking.tracker import track
-    from stage1_pose.beats import beat_times
+    from stage1_pose.beats import beat_times, song_beats
 
-    def learned(y: np.ndarray, sr: int) -> tuple[np.ndarray, np.ndarray]:
-        found = track(y, sr)
-        return found.beats, found.downbeats
+    def product(tracker: str) -> Tracker:
+        def run(y: np.ndarray, sr: int) -> tuple[np.ndarray, np.ndarray]:
+            found = song_beats(y, sr, tracker)
+            return found.beats, found.downbeats
+        return run
 
     return {"librosa": lambda y, sr: (librosa.beat.beat_track(y=y, sr=sr, units="time")[1], None),
             "previous": lambda y, sr: (_previous_tracker(y, sr), None),
             "project": lambda y, sr: (beat_times(y, sr), None),
-            "learned": learned}
+            "learned": product("learned"),
+            "combined": product("combined")}
 
 
 def scores(beats: np.ndarray, downbeats: np.ndarray | None, reference: np.ndarray,

@@ -1,8 +1,9 @@
 """Music beats: tracking them in a song, the tempo to dance at, and placing them on pose frames.
 
-Two trackers (:data:`BEAT_TRACKERS`): ``dsp``, onset tempograms and dynamic programming (this module), and
-``learned``, a network and a bar-pointer decoder (:mod:`stage1_pose.beat_tracking`) that also finds the bars.
-:func:`song_beats` runs either. Trackers are scored with ``mir_eval.beat`` in the tests and in
+Three trackers (:data:`BEAT_TRACKERS`): ``dsp``, onset tempograms and dynamic programming (this module);
+``learned``, a network and a bar-pointer decoder (:mod:`stage1_pose.beat_tracking`) that also finds the bars;
+``combined`` takes the DSP beats where the network's activations support them clearly better than its own
+decoding. :func:`song_beats` runs any of them. Trackers are scored with ``mir_eval.beat`` in the tests and in
 ``benchmarks/beat_benchmark.py`` (real music, a dev / test split).
 
 Beat times are seconds from the start of the song; on pose frames a beat is the frame nearest to its time
@@ -181,12 +182,17 @@ def song_beats(samples: np.ndarray, sr: int, tracker: str = DEFAULT_BEAT_TRACKER
     """Beats, downbeats and tempo of a mono ``[N]`` song at ``sr`` Hz by ``tracker`` (:data:`BEAT_TRACKERS`).
 
     ``learned`` decodes bars of 3 or 4 beats; ``dsp`` gives no bars of its own, so its downbeats are every fourth
-    beat from the first.
+    beat from the first; ``combined`` runs both and keeps the learned answer unless the network's activations
+    support the DSP beats clearly better (:func:`stage1_pose.beat_tracking.tracker.checked`).
     """
-    if tracker == "learned":
-        from stage1_pose.beat_tracking.tracker import track
+    if tracker in ("learned", "combined"):
+        from stage1_pose.beat_tracking.tracker import activations, checked, decode_activations
 
-        found = track(samples, sr)
+        probs = activations(samples, sr)
+        found = decode_activations(probs)
+        if tracker == "combined":
+            bpm, beats = track_beats(samples, sr)
+            found = checked(found, probs, beats, bpm)
         return SongBeats(found.beats, found.downbeats, found.bpm)
     if tracker == "dsp":
         bpm, beats = track_beats(samples, sr)

@@ -10,9 +10,17 @@ import torch
 
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import load_song
+from stage1_pose.beat_tracking.decoder import Decoded
 from stage1_pose.beat_tracking.model import PRESETS, BeatTCN, load_model, save_model
 from stage1_pose.beat_tracking.spectrogram import FPS, N_MELS, frame_of, mel_frames, network_input
-from stage1_pose.beat_tracking.tracker import PRETRAINED, activations, decode_activations, track
+from stage1_pose.beat_tracking.tracker import (
+    PRETRAINED,
+    activations,
+    checked,
+    decode_activations,
+    support,
+    track,
+)
 from stage1_pose.beat_tracking.train import Song, TrainConfig, augmented_excerpt, targets
 from stage1_pose.beats import BEAT_TRACKERS, song_beats
 
@@ -100,7 +108,27 @@ def test_shipped_model_is_small_and_tracks_a_real_recording():
     assert np.all(np.diff(np.searchsorted(found.beats, found.downbeats)) == 4)
 
 
-def test_song_beats_runs_either_tracker():
+def test_activations_support_the_right_tempo_and_take_another_trackers_beats_only_when_clearly_better():
+    """Peaks every 0.5 s: beats there are supported better than at half or double tempo or at 2:3; a decoding at a
+    wrong ratio gives way to beats on the peaks, a right one keeps its own answer against a near copy."""
+    probs = np.zeros((int(10 * FPS), 3), np.float32)
+    probs[:, 0] = 1
+    beats = np.arange(0.5, 9.6, 0.5)
+    for k, b in enumerate(beats):
+        probs[frame_of(np.array([b]))[0], :] = (0.1, 0.1, 0.8) if k % 4 == 0 else (0.1, 0.8, 0.1)
+    right = support(beats, probs)
+    assert right > 0.9
+    assert right > support(beats[::2], probs) + 0.2 and right > support(np.arange(0.5, 9.6, 0.25), probs) + 0.2
+    assert right > support(np.arange(0.5, 9.6, 0.75), probs) + 0.2
+    wrong = Decoded(np.arange(0.5, 9.6, 0.75), np.arange(0.5, 9.6, 3.0), 4, 80.0)
+    taken = checked(wrong, probs, beats, 120.0)
+    assert np.array_equal(taken.beats, beats) and taken.bpm == 120.0
+    assert np.all(np.isin(taken.downbeats, taken.beats)) and len(taken.downbeats) >= 2
+    own = Decoded(beats, beats[::4], 4, 120.0)
+    assert checked(own, probs, beats + 0.01, 120.0) is own
+
+
+def test_song_beats_runs_every_tracker():
     sr = 22050
     y = np.zeros(8 * sr, np.float32)
     for b in np.arange(0.5, 7.6, 0.5):
