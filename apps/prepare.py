@@ -85,7 +85,7 @@ def prepare_videos(videos_dir: str | os.PathLike, out_dir: str | os.PathLike, cl
         clip_seconds: target clip length in seconds (a video is cut into equal parts of about this length).
         default_style: style of the videos directly in ``videos_dir``.
         extract: ``video path -> PoseSequence`` (default: :func:`stage2_video.extract.extract_poses`).
-        tracker: the beat tracker, ``learned`` or ``dsp`` (:func:`stage1_pose.beats.song_beats`).
+        tracker: the beat tracker, ``combined``, ``learned`` or ``dsp`` (:func:`stage1_pose.beats.song_beats`).
     """
     if clip_seconds < 2:
         raise DancesynthError(f"--clip-seconds must be at least 2 s, got {clip_seconds:g}.")

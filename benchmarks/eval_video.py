@@ -98,7 +98,8 @@ def held_out_quality(run_dir: Path, frames: int = 0, device: str = "auto", groun
                            total=len(commanded), desc="render"))
     reals = [np.asarray(real[t]) for t in range(held_out.start, stop)]
     target = framed(commanded, framings)
-    from_generated, from_real = extracted(generated, poses.fps), extracted(reals, poses.fps)
+    start = target.keypoints[0]
+    from_generated, from_real = extracted(generated, poses.fps, start), extracted(reals, poses.fps, start)
     rows = [("generated vs commanded", pck(from_generated, target)),
             ("real frames vs commanded (ceiling)", pck(from_real, target))]
     if ground_truth:

@@ -57,7 +57,7 @@ def dance(song: PathLike, *, out: PathLike, target: PathLike | None = None, vide
         side_by_side: also write skeleton | generated person as an mp4.
         beat_snap: retime the dance so that its movement beats land on the song's beats (False: the pose
             model's own timing).
-        beats: the beat tracker, ``learned`` (beats and downbeats) or ``dsp``.
+        beats: the beat tracker, ``combined``, ``learned`` or ``dsp`` (:data:`stage1_pose.beats.BEAT_TRACKERS`).
         precision: appearance-model arithmetic: ``auto`` (bf16 on CPUs with AMX/AVX-512-BF16 and GPUs),
             ``fp32`` or ``bf16``.
         device: ``auto`` (GPU when available), ``cpu`` or ``cuda``.
@@ -87,7 +87,7 @@ def generate(song: PathLike, *, model: PathLike | None = None, out: PathLike | N
         preview: also write a skeleton mp4 with the song as its sound.
         beat_snap: retime the dance so that its movement beats land on the song's beats (False: the model's
             own timing).
-        beats: the beat tracker, ``learned`` (beats and downbeats) or ``dsp`` (downbeats: every fourth beat).
+        beats: the beat tracker, ``combined``, ``learned`` or ``dsp`` (``dsp``'s downbeats: every fourth beat).
         precision: ``int8`` decodes about 3x faster on CPU; ``auto`` = int8 on CPU, fp32 on GPU.
         device: ``auto``, ``cpu`` or ``cuda``.
     """

@@ -228,7 +228,8 @@ def extract_frames(frames: Iterable[np.ndarray], fps: float, size: tuple[int, in
     """:func:`extract_poses` on decoded frames (RGB uint8 ``[height, width, 3]``, ``size = (width, height)``).
 
     Used where frames are already in memory (e.g. generated frames), so no lossy re-encoding blurs thin limbs.
-    ``start``: the pose of the person to follow in the first frame (:class:`PersonTracker`).
+    ``start``: the ``[25, 3]`` pose (pixels of the frames) of the person to follow in the first frame
+    (:class:`PersonTracker`).
 
     Raises:
         DancesynthError: the person is absent in more than ``config.max_missing_fraction`` of the frames.

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
+from dancesynth.core.motion import bone_lengths
 from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX, NECK, ROOT
 from stage2_video.framing import MIN_CONFIDENCE, Framing, VideoFraming
 
@@ -154,11 +155,12 @@ GROUP_BONES: dict[str, tuple[int, ...]] = {
     "core": (0, 1, 2, 3, 4, 5), "right arm": (6, 7), "left arm": (8, 9), "right leg": (10, 11), "left leg": (12, 13),
 }
 GROUPS = tuple(GROUP_BONES)
-# A limb may stretch along its bone to at most this factor of the torso's scale (a foreshortened source limb).
+# A limb (or the torso, along its spine) may stretch to at most this factor of the size ratio across it (a
+# foreshortened source limb).
 MAX_STRETCH = 2.5
 # The body's bones by which a pose's size is measured (BODY25_LIMBS up to neck-nose: torso, shoulders, arms, hips,
 # legs, neck); the face's and feet's are too short to tell a size by.
-SCALE_BONES = np.arange(14)
+SCALE_BONES = np.arange(BODY25_LIMBS.index((NECK, J["Nose"])) + 1)
 # A bone's reference length is this percentile of its lengths in the bank: its length across the image.
 REFERENCE_PERCENTILE = 90
 # A pose's size is its bones' (length / reference) ratios ranked from the largest, this one taken (1-based), when at
@@ -195,14 +197,14 @@ def _scale_bone_lengths(keypoints: np.ndarray) -> np.ndarray:
     kp = np.asarray(keypoints, np.float64)
     parent, child = np.array(BODY25_LIMBS)[SCALE_BONES].T
     seen = (kp[..., parent, 2] >= MIN_CONFIDENCE) & (kp[..., child, 2] >= MIN_CONFIDENCE)
-    return np.where(seen, np.linalg.norm(kp[..., child, :2] - kp[..., parent, :2], axis=-1), np.nan)
+    return np.where(seen, bone_lengths(kp[..., :2])[..., SCALE_BONES], np.nan)
 
 
 def body_scale(keypoints: np.ndarray, reference: np.ndarray) -> float:
     """The size of one ``[25, 3]`` pose against :func:`reference_lengths` (1: the bank's body across the image):
     the :data:`SCALE_RANK`-th largest of its bones' length ratios, the largest with fewer than
     :data:`SCALE_MIN_BONES` seen, NaN with none. A torso bending towards the camera is shorter, not smaller."""
-    ratios = _scale_bone_lengths(keypoints) / reference
+    ratios = _scale_bone_lengths(keypoints) / np.where(reference > 0, reference, np.nan)
     ratios = np.sort(ratios[np.isfinite(ratios) & (ratios > 0)])[::-1]
     if not len(ratios):
         return math.nan
@@ -469,8 +471,9 @@ def torso_moves(src: np.ndarray, dst: np.ndarray, scale: float = math.nan
     """The torso's ``[2, 3]`` move from pose ``src`` to ``dst`` (``[25, 3]``) and the similarity whose scale sizes
     the other parts; None with fewer than 2 shared torso joints. ``scale``: the body's size in ``dst`` over that in
     ``src`` (:func:`body_scale`): the torso is then stretched along its spine (neck to mid-hip) onto the target's
-    and scaled by ``scale`` across it, and the other parts take ``scale``; NaN: the least-squares similarity of the
-    torso's joints does both (its scale shrinks with a torso bending towards the camera, and the head with it)."""
+    and scaled by ``scale`` across it (without a neck or mid-hip in both poses: the similarity's turn at ``scale``),
+    and the other parts take ``scale``; NaN: the least-squares similarity of the torso's joints does both (its scale
+    shrinks with a torso bending towards the camera, and the head with it)."""
     shared = [j for j in TORSO_JOINTS if src[j, 2] >= MIN_CONFIDENCE and dst[j, 2] >= MIN_CONFIDENCE]
     if len(shared) < 2:
         return None

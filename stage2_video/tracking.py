@@ -194,8 +194,9 @@ class PersonTracker:
 
     def __init__(self, estimator: PoseEstimator, width: int, height: int, config: TrackerConfig | None = None,
                  start: np.ndarray | None = None):
-        """``start``: the ``[25, 3]`` pose (pixels) of the person to follow, where they stand in the first frame;
-        None (or a pose without a neck): the largest person near the centre (:func:`choose_target`)."""
+        """``start``: the ``[25, 3]`` pose (pixels) of the person to follow, where they stand in the first frame:
+        it is followed from there (no whole-frame search, no ``min_lead`` check); None, or a pose without a neck or
+        with fewer than 2 joints: the largest person near the centre (:func:`choose_target`)."""
         self.estimator = estimator
         self.width, self.height = width, height
         self.config = config or TrackerConfig()

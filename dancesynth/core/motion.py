@@ -78,11 +78,11 @@ def speed_by_beat_phase(xy: np.ndarray, beat_frames: np.ndarray, fps: float, bin
 
 
 def bone_lengths(xy: np.ndarray) -> np.ndarray:
-    """``[T, B]`` length of each bone of :data:`~dancesynth.core.skeleton.BODY25_LIMBS` in ``[T, 25, 2]``
+    """``[..., B]`` length of each bone of :data:`~dancesynth.core.skeleton.BODY25_LIMBS` in ``[..., 25, 2]``
     positions, in their unit (e.g. pixels)."""
     xy = np.asarray(xy, dtype=np.float64)
     parent, child = np.array(BODY25_LIMBS).T
-    return np.linalg.norm(xy[:, child] - xy[:, parent], axis=-1)
+    return np.linalg.norm(xy[..., child, :] - xy[..., parent, :], axis=-1)
 
 
 def reference_bone_lengths(xy: np.ndarray) -> np.ndarray:

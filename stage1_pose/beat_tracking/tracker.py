@@ -53,11 +53,10 @@ def decode_activations(probs: np.ndarray, config: DecoderConfig = DEFAULT_DECODE
     frames = len(probs) // _POOL * _POOL
     pooled = probs[:frames].reshape(-1, _POOL, 3).max(axis=1)
     coarse = decode(pooled[:, 1], pooled[:, 2], FPS / _POOL, config)
-    strength = probs[:, 1] + probs[:, 2]
+    strength = _strength(probs)
 
     def refine(times: np.ndarray) -> np.ndarray:
-        centre = frame_of(times)
-        window = np.clip(centre[:, None] + np.arange(-_REFINE, _REFINE + 1)[None, :], 0, len(probs) - 1)
+        window = _windows(times, _REFINE, len(probs))
         return window[np.arange(len(window)), strength[window].argmax(axis=1)] / FPS
 
     beats = refine(coarse.beats)
@@ -72,17 +71,26 @@ def track(samples: np.ndarray, sr: int, model: BeatTCN | Sequence[BeatTCN] | Non
     return decode_activations(activations(samples, sr, model), config)
 
 
+def _strength(probs: np.ndarray) -> np.ndarray:
+    """``[T]`` beat strength of ``[T, 3]`` probabilities: a beat of either kind."""
+    return probs[:, 1] + probs[:, 2]
+
+
+def _windows(times: np.ndarray, half: int, length: int) -> np.ndarray:
+    """``[len(times), 2 * half + 1]`` frame indices (at ``FPS``, clipped to ``length``) around each time (seconds)."""
+    centre = np.clip(frame_of(np.asarray(times)), 0, length - 1)
+    return np.clip(centre[:, None] + np.arange(-half, half + 1)[None, :], 0, length - 1)
+
+
 def support(beats: np.ndarray, probs: np.ndarray) -> float:
     """How well ``[T, 3]`` probabilities at ``FPS`` support beat times ``beats`` (seconds), in [0, 1]: the harmonic
     mean of the mean beat strength (beat + downbeat probability) at its strongest within 70 ms of each beat, and the
     share of the strength's peaks, weighted by height, within 70 ms of a beat. A half-tempo answer loses the
     second, a double-tempo one the first. 0 with fewer than 2 beats."""
-    strength = probs[:, 1] + probs[:, 2]
+    strength = _strength(probs)
     if len(beats) < 2 or len(strength) < 3:
         return 0.0
-    centre = np.clip(frame_of(np.asarray(beats)), 0, len(strength) - 1)
-    window = np.clip(centre[:, None] + np.arange(-_SUPPORT_FRAMES, _SUPPORT_FRAMES + 1)[None, :], 0,
-                     len(strength) - 1)
+    window = _windows(beats, _SUPPORT_FRAMES, len(strength))
     precision = float(strength[window].max(axis=1).mean())
     peaks = np.flatnonzero((strength[1:-1] >= strength[:-2]) & (strength[1:-1] > strength[2:])) + 1
     near = np.zeros(len(strength), bool)
@@ -94,14 +102,13 @@ def support(beats: np.ndarray, probs: np.ndarray) -> float:
 def checked(decoded: Decoded, probs: np.ndarray, beats: np.ndarray, bpm: float) -> Decoded:
     """``decoded`` (from ``probs``), or another tracker's ``beats`` (seconds, at ``bpm``) when ``probs`` support them
     by more than :data:`SUPPORT_MARGIN` (:func:`support`): the decoder's tempo model can settle on a wrong ratio
-    (double tempo, 3:2) that its own activations do not bear out. The bars then start at the other beats within
-    70 ms of a decoded downbeat (every fourth beat when none is)."""
+    (double tempo, 3:2) that its own activations do not bear out. The bars then keep the decoded metre, every
+    ``metre``-th of the other beats from the phase where the downbeat probability is highest (the decoded downbeats
+    came from the wrong tempo)."""
     if support(beats, probs) <= support(decoded.beats, probs) + SUPPORT_MARGIN:
         return decoded
     beats = np.asarray(beats, np.float64)
-    if len(decoded.downbeats) and len(beats):
-        nearest = np.abs(beats[:, None] - decoded.downbeats[None, :]).min(axis=1)
-        downbeats = beats[nearest <= _SUPPORT_FRAMES / FPS]
-    else:
-        downbeats = beats[:0]
-    return Decoded(beats, downbeats if len(downbeats) else beats[::4], 4, bpm)
+    at_beats = probs[:, 2][_windows(beats, _SUPPORT_FRAMES, len(probs))].max(axis=1)
+    metre = decoded.metre
+    phase = int(np.argmax([at_beats[p::metre].mean() if len(at_beats[p::metre]) else 0.0 for p in range(metre)]))
+    return Decoded(beats, beats[phase::metre], metre, bpm)

@@ -9,5 +9,5 @@ where the network's activations support them clearly better than its decoding. A
 from __future__ import annotations
 
 BEAT_TRACKERS = ("combined", "learned", "dsp")
-# The tracker with the higher mean F-measure on the beat benchmark's test half (docs/methods/beat_tracking.md).
+# The tracker with the highest mean F-measure on the beat benchmark's test half (docs/methods/beat_tracking.md).
 DEFAULT_BEAT_TRACKER = "combined"

@@ -2,9 +2,9 @@
 
 Both importers resample the dance to the dataset layout's ``POSE_FPS`` (15 fps), decode the song to its
 ``SAMPLE_RATE`` (22050 Hz) mono, trim both to their common length, track the song's beats and downbeats
-(source ``tracked``; tracker ``learned`` or ``dsp``, :func:`stage1_pose.beats.song_beats`) and append one clip
-to the manifest, creating the dataset folder when it does not exist. A song is identified by a hash of its
-samples, so several dances to one song share its split.
+(source ``tracked``; tracker ``combined``, ``learned`` or ``dsp``: :func:`stage1_pose.beats.song_beats`) and
+append one clip to the manifest, creating the dataset folder when it does not exist. A song is identified by a hash
+of its samples, so several dances to one song share its split.
 
 AIST++ publishes its 2D keypoints as Python pickles, which this project never unpickles (a pickle can run
 code). Convert each file once, in a Python session you trust, to a NumPy array::
@@ -63,7 +63,7 @@ def add_clip(out_dir: str | os.PathLike, poses: PoseSequence, song_path: str | o
         clip_id: the new clip's id (letters, digits, ``_.-``); must not be in the dataset yet.
         split: ``train``, ``val`` or ``test``; default: the split of this song's other clips, or a stable
             80/10/10 choice by song.
-        tracker: the beat tracker, ``learned`` or ``dsp`` (:data:`stage1_pose.beats.BEAT_TRACKERS`).
+        tracker: the beat tracker, ``combined``, ``learned`` or ``dsp`` (:data:`stage1_pose.beats.BEAT_TRACKERS`).
     """
     from dancesynth.core.media import load_song
 
