@@ -185,14 +185,17 @@ def song_beats(samples: np.ndarray, sr: int, tracker: str = DEFAULT_BEAT_TRACKER
     beat from the first; ``combined`` runs both and keeps the learned answer unless the network's activations
     support the DSP beats clearly better (:func:`stage1_pose.beat_tracking.tracker.checked`).
     """
-    if tracker in ("learned", "combined"):
+    if tracker == "learned":
+        from stage1_pose.beat_tracking.tracker import track
+
+        found = track(samples, sr)
+        return SongBeats(found.beats, found.downbeats, found.bpm)
+    if tracker == "combined":
         from stage1_pose.beat_tracking.tracker import activations, checked, decode_activations
 
         probs = activations(samples, sr)
-        found = decode_activations(probs)
-        if tracker == "combined":
-            bpm, beats = track_beats(samples, sr)
-            found = checked(found, probs, beats, bpm)
+        bpm, beats = track_beats(samples, sr)
+        found = checked(decode_activations(probs), probs, beats, bpm)
         return SongBeats(found.beats, found.downbeats, found.bpm)
     if tracker == "dsp":
         bpm, beats = track_beats(samples, sr)

@@ -102,13 +102,14 @@ def support(beats: np.ndarray, probs: np.ndarray) -> float:
 def checked(decoded: Decoded, probs: np.ndarray, beats: np.ndarray, bpm: float) -> Decoded:
     """``decoded`` (from ``probs``), or another tracker's ``beats`` (seconds, at ``bpm``) when ``probs`` support them
     by more than :data:`SUPPORT_MARGIN` (:func:`support`): the decoder's tempo model can settle on a wrong ratio
-    (double tempo, 3:2) that its own activations do not bear out. The bars then keep the decoded metre, every
-    ``metre``-th of the other beats from the phase where the downbeat probability is highest (the decoded downbeats
-    came from the wrong tempo)."""
+    (double tempo, 3:2) that its own activations do not bear out. The bars are then every 3rd or 4th of the other
+    beats, the metre and phase on whose beats the downbeat probability is highest on average (the decoded metre and
+    downbeats came from the wrong tempo)."""
     if support(beats, probs) <= support(decoded.beats, probs) + SUPPORT_MARGIN:
         return decoded
     beats = np.asarray(beats, np.float64)
     at_beats = probs[:, 2][_windows(beats, _SUPPORT_FRAMES, len(probs))].max(axis=1)
-    metre = decoded.metre
-    phase = int(np.argmax([at_beats[p::metre].mean() if len(at_beats[p::metre]) else 0.0 for p in range(metre)]))
+    # Only called with at least 2 beats (support is 0 below), so every metre's first phase has beats.
+    _, metre, phase = max((at_beats[phase::metre].mean(), metre, phase) for metre in DEFAULT_DECODER.metres
+                          for phase in range(metre) if len(at_beats[phase::metre]))
     return Decoded(beats, beats[phase::metre], metre, bpm)
