@@ -96,26 +96,30 @@ def _unit(envelope: np.ndarray) -> np.ndarray:
 
 
 def _mean_tempogram(onset: np.ndarray) -> np.ndarray:
-    """``[win]`` time-averaged autocorrelation tempogram of an onset envelope, computed in chunks.
+    """``[win]`` time-averaged autocorrelation tempogram of an onset envelope: librosa's ``tempogram`` (centred,
+    Hann window, each frame's autocorrelation divided by its largest value) averaged over frames, to 1e-15.
 
-    A whole song's ``[win, frames]`` tempogram would take gigabytes for long songs, so it is accumulated chunk by
-    chunk (each chunk sees half a window of onsets beyond its edges, and each frame is counted once), keeping
+    Computed here in blocks of frames, each frame's autocorrelation an FFT along a contiguous row: librosa takes
+    its FFTs across the frames' axis, which made this 4x slower and the DSP tracker's largest cost; the blocks keep
     memory flat for any song length.
     """
-    import librosa
+    from numpy.lib.stride_tricks import sliding_window_view
+    from scipy import fft, signal
 
     win = int(round(_TEMPO_WINDOW_SECONDS * _BEAT_SR / _BEAT_HOP))
-    # A tempogram frame sees half a window either side; 512-frame chunks keep each FFT batch near 50 MB.
-    chunk, margin = 512, win // 2 + 1
-    total, count = np.zeros(win), 0
-    for start in range(0, len(onset), chunk):
-        lo = max(0, start - margin)
-        tg = librosa.feature.tempogram(onset_envelope=onset[lo:start + chunk + margin], sr=_BEAT_SR,
-                                       hop_length=_BEAT_HOP, win_length=win)
-        keep = tg[:, start - lo:start - lo + min(chunk, len(onset) - start)]
-        total += keep.sum(axis=1)
-        count += keep.shape[1]
-    return total / max(count, 1)
+    n = len(onset)
+    frames = sliding_window_view(np.pad(onset, win // 2, mode="linear_ramp", end_values=0), win)[:n]
+    window = signal.get_window("hann", win, fftbins=True)
+    n_fft = fft.next_fast_len(2 * win - 1, real=True)
+    tiny = np.finfo(np.float64).tiny
+    total = np.zeros(win)
+    # 1024 frames of 689 lags: about 12 MB per block.
+    for start in range(0, n, 1024):
+        spectrum = fft.rfft(frames[start:start + 1024] * window, n=n_fft, axis=1)
+        autocorr = fft.irfft(spectrum.real ** 2 + spectrum.imag ** 2, n=n_fft, axis=1)[:, :win]
+        peak = np.abs(autocorr).max(axis=1, keepdims=True)
+        total += np.where(peak > tiny, autocorr / np.maximum(peak, tiny), autocorr).sum(axis=0)
+    return total / max(n, 1)
 
 
 def _tempo_candidates(full: np.ndarray, low: np.ndarray) -> list[float]:

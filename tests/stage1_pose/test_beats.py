@@ -85,3 +85,14 @@ def test_onset_strength_peaks_on_clicks(drum_loop):
     peaks = np.round(beats[1:] * 15).astype(int)  # spectral flux has no onset at t = 0
     assert onset[peaks].min() > 3 * np.median(onset)
 
+
+
+def test_the_mean_tempogram_is_librosas_tempogram_averaged_over_frames():
+    # The tracker computes it itself (4x faster); a song longer than one block of frames, ending mid-block.
+    import librosa
+
+    onset = np.random.default_rng(0).random(2500)
+    win = int(round(beats._TEMPO_WINDOW_SECONDS * beats._BEAT_SR / beats._BEAT_HOP))
+    expected = librosa.feature.tempogram(onset_envelope=onset, sr=beats._BEAT_SR, hop_length=beats._BEAT_HOP,
+                                         win_length=win).mean(axis=1)
+    np.testing.assert_allclose(beats._mean_tempogram(onset), expected, atol=1e-12)
