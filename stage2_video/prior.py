@@ -168,8 +168,6 @@ REFERENCE_PERCENTILE = 90
 # lengthens one or two.
 SCALE_RANK = 2
 SCALE_MIN_BONES = 3
-# Radius (torso lengths) of the disc at each shoulder that the torso's region also covers.
-SHOULDER_RADIUS = 0.15
 # A rigid part is placed by its own features (the face's points) when at least this many are seen in both poses.
 MIN_FIT_JOINTS = 3
 # Each part's region grows by this many pixels into its neighbours', so moved parts overlap instead of leaving a seam.
@@ -375,20 +373,17 @@ def part_labels(mask: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
 
 
 def fill_torso(image: np.ndarray, labels: np.ndarray, keypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The torso's region of one frame: its own pixels plus the quadrilateral between shoulders and hips and a
-    disc at each shoulder (``[H, W]`` bool), and ``image`` with the pixels of that region which limbs cover
-    filled in from the torso around them, so a torso moved out from behind an arm shows no hole and a raised arm
-    leaves no wedge at the shoulder."""
+    """The torso's region of one frame: its own pixels plus the quadrilateral between shoulders and hips
+    (``[H, W]`` bool), and ``image`` with the pixels of that region which limbs cover filled in from the torso
+    around them, so a torso moved out from behind an arm shows no hole. Nothing outside the quadrilateral is added:
+    a disc at each shoulder, filled the same way, stood out as square pads wherever the upper arm came from a frame
+    whose arm lay at another angle (docs/methods/warped_prior.md)."""
     region = labels == TORSO
     corners = [j for j in TORSO_CORNERS if keypoints[j, 2] >= MIN_CONFIDENCE]
-    torso = float(torso_lengths(keypoints))
-    if len(corners) < 3 or not region.any() or not np.isfinite(torso):
+    if len(corners) < 3 or not region.any():
         return image, region
     quad = np.zeros(labels.shape, np.uint8)
     cv2.fillConvexPoly(quad, np.round(keypoints[corners, :2]).astype(np.int32), 1)
-    for j in (J["RShoulder"], J["LShoulder"]):
-        if keypoints[j, 2] >= MIN_CONFIDENCE:
-            cv2.circle(quad, tuple(int(v) for v in np.round(keypoints[j, :2])), round(SHOULDER_RADIUS * torso), 1, -1)
     holes = (quad > 0) & ~region & (labels != NO_PART)  # limb pixels only: the background stays out
     if not holes.any():
         return image, region

@@ -185,6 +185,19 @@ def test_a_hand_on_the_hip_belongs_to_its_arm_and_the_torso_behind_an_arm_is_fil
     assert not (filled[covered] == (255, 0, 0)).all(axis=1).any()  # filled from the torso, not the arm
 
 
+def test_the_torso_takes_no_arm_pixels_beyond_its_shoulders():
+    # Arm pixels the torso fills in stay between shoulders and hips: beyond them, moved under an arm at another
+    # angle, they stood out as square pads at the shoulders.
+    kp = standing_pose()
+    image, mask = textured_person(kp)
+    labels = part_labels(mask, kp)
+    _, region = fill_torso(image, labels, kp)
+    quad = np.zeros(mask.shape, np.uint8)
+    cv2.fillConvexPoly(quad, np.round(kp[[J["RShoulder"], J["LShoulder"], J["LHip"], J["RHip"]], :2]).astype(np.int32), 1)
+    taken = region & (labels != TORSO)
+    assert taken.any() and not (taken & (quad == 0)).any()
+
+
 def _bank(poses: np.ndarray) -> FrameBank:
     frames = np.zeros((len(poses), 8, 8, 3), np.uint8)
     return FrameBank(frames, np.zeros((len(poses), 8, 8), np.uint8), poses, np.arange(len(poses)))
