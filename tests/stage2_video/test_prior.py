@@ -13,6 +13,7 @@ from stage2_video.prior import (
     NO_PART,
     PARTS,
     TORSO,
+    TORSO_CORNERS,
     FrameBank,
     PriorRenderer,
     Source,
@@ -193,7 +194,7 @@ def test_the_torso_takes_no_arm_pixels_beyond_its_shoulders():
     labels = part_labels(mask, kp)
     _, region = fill_torso(image, labels, kp)
     quad = np.zeros(mask.shape, np.uint8)
-    cv2.fillConvexPoly(quad, np.round(kp[[J["RShoulder"], J["LShoulder"], J["LHip"], J["RHip"]], :2]).astype(np.int32), 1)
+    cv2.fillConvexPoly(quad, np.round(kp[list(TORSO_CORNERS), :2]).astype(np.int32), 1)
     taken = region & (labels != TORSO)
     assert taken.any() and not (taken & (quad == 0)).any()
 
