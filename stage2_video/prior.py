@@ -375,9 +375,9 @@ def part_labels(mask: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
 def fill_torso(image: np.ndarray, labels: np.ndarray, keypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The torso's region of one frame: its own pixels plus the quadrilateral between shoulders and hips
     (``[H, W]`` bool), and ``image`` with the pixels of that region which limbs cover filled in from the torso
-    around them, so a torso moved out from behind an arm shows no hole. Nothing outside the quadrilateral is added:
-    a disc at each shoulder, filled the same way, stood out as square pads wherever the upper arm came from a frame
-    whose arm lay at another angle (docs/methods/warped_prior.md)."""
+    around them, so a torso moved out from behind an arm shows no hole. Nothing beyond the shoulders is added: arm
+    pixels there, moved under an upper arm taken from a frame whose arm lies at another angle, stand out as square
+    pads (docs/methods/warped_prior.md)."""
     region = labels == TORSO
     corners = [j for j in TORSO_CORNERS if keypoints[j, 2] >= MIN_CONFIDENCE]
     if len(corners) < 3 or not region.any():

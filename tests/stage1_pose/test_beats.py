@@ -86,7 +86,6 @@ def test_onset_strength_peaks_on_clicks(drum_loop):
     assert onset[peaks].min() > 3 * np.median(onset)
 
 
-
 def test_the_mean_tempogram_is_librosas_tempogram_averaged_over_frames():
     # The tracker computes it itself (4x faster); a song longer than one block of frames, ending mid-block.
     import librosa
