@@ -60,7 +60,7 @@ for the others the column is empty, since their beats taken every ``metre`` beat
 the truth): librosa's default ``beat_track``, the tracker the project used before (low-band onsets under 150 Hz),
 the project's DSP tracker :func:`stage1_pose.beats.beat_times`, the learned tracker (network and bar-pointer
 decoder, trained on the dev half and rendered MIDI by ``train_beat_tracker.py``) and the two combined (the DSP
-beats where the network's activations support them clearly better), both through the product's
+beats or half the decoded tempo where the network's activations support them clearly better), both through the product's
 :func:`stage1_pose.beats.song_beats`. The tempo for dancing (:func:`stage1_pose.beats.dance_tempo`)
 is printed with the true tempo, because the F-measure is judged at the annotated beat level.
 """

@@ -2,9 +2,9 @@
 
 Three trackers (:data:`BEAT_TRACKERS`): ``dsp``, onset tempograms and dynamic programming (this module);
 ``learned``, a network and a bar-pointer decoder (:mod:`stage1_pose.beat_tracking`) that also finds the bars;
-``combined`` takes the DSP beats where the network's activations support them clearly better than its own
-decoding. :func:`song_beats` runs any of them. Trackers are scored with ``mir_eval.beat`` in the tests and in
-``benchmarks/beat_benchmark.py`` (real music, a dev / test split).
+``combined`` takes the DSP beats, or every other decoded beat, where the network's activations support them
+clearly better than its own decoding. :func:`song_beats` runs any of them. Trackers are scored with
+``mir_eval.beat`` in the tests and in ``benchmarks/beat_benchmark.py`` (real music, a dev / test split).
 
 Beat times are seconds from the start of the song; on pose frames a beat is the frame nearest to its time
 (pose frame ``i`` sits at ``i / fps`` seconds, see :mod:`stage1_pose.music_features`).
@@ -186,7 +186,8 @@ def song_beats(samples: np.ndarray, sr: int, tracker: str = DEFAULT_BEAT_TRACKER
 
     ``learned`` decodes bars of 3 or 4 beats; ``dsp`` gives no bars of its own, so its downbeats are every fourth
     beat from the first; ``combined`` runs both and keeps the learned answer unless the network's activations
-    support the DSP beats clearly better (:func:`stage1_pose.beat_tracking.tracker.checked`).
+    support the DSP beats or half the decoded tempo clearly better
+    (:func:`stage1_pose.beat_tracking.tracker.checked`).
     """
     if tracker == "learned":
         from stage1_pose.beat_tracking.tracker import track

@@ -100,16 +100,20 @@ def support(beats: np.ndarray, probs: np.ndarray) -> float:
 
 
 def checked(decoded: Decoded, probs: np.ndarray, beats: np.ndarray, bpm: float) -> Decoded:
-    """``decoded`` (from ``probs``), or another tracker's ``beats`` (seconds, at ``bpm``) when ``probs`` support them
-    by more than :data:`SUPPORT_MARGIN` (:func:`support`): the decoder's tempo model can settle on a wrong ratio
-    (double tempo, 3:2) that its own activations do not bear out. The bars are then every 3rd or 4th of the other
-    beats, the metre and phase on whose beats the downbeat probability is highest on average (the decoded metre and
-    downbeats came from the wrong tempo)."""
-    if support(beats, probs) <= support(decoded.beats, probs) + SUPPORT_MARGIN:
+    """``decoded`` (from ``probs``), or the best supported of its alternatives when ``probs`` support it by more
+    than :data:`SUPPORT_MARGIN` (:func:`support`): another tracker's ``beats`` (seconds, at ``bpm``) and every other
+    decoded beat (either phase, at half the tempo). The decoder's tempo model can settle on a ratio its own
+    activations do not bear out (double tempo, 3:2). The bars are then every 3rd or 4th of the beats taken, the
+    metre and phase on whose beats the downbeat probability is highest on average (the decoded metre and downbeats
+    came from the wrong tempo)."""
+    alternatives = [(np.asarray(beats, np.float64), bpm),
+                    *((decoded.beats[phase::2], decoded.bpm / 2) for phase in (0, 1))]
+    best, index = max((support(times, probs), -k) for k, (times, _) in enumerate(alternatives))
+    if best <= support(decoded.beats, probs) + SUPPORT_MARGIN:
         return decoded
-    beats = np.asarray(beats, np.float64)
+    beats, bpm = alternatives[-index]
     at_beats = probs[:, 2][_windows(beats, _SUPPORT_FRAMES, len(probs))].max(axis=1)
-    # Only called with at least 2 beats (support is 0 below), so every metre's first phase has beats.
+    # Only reached with at least 2 beats (support is 0 below), so every metre's first phase has beats.
     _, metre, phase = max((at_beats[phase::metre].mean(), metre, phase) for metre in DEFAULT_DECODER.metres
                           for phase in range(metre) if len(at_beats[phase::metre]))
     return Decoded(beats, beats[phase::metre], metre, bpm)

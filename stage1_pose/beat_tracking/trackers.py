@@ -1,8 +1,8 @@
 """The beat trackers' names and the default, without heavy imports, so argument parsers list them at once.
 
 ``learned``: this package's network and bar-pointer decoder (beats and downbeats); ``dsp``: onset tempograms and
-dynamic programming, :func:`stage1_pose.beats.beat_times` (beats only); ``combined``: both, the DSP beats taken
-where the network's activations support them clearly better than its decoding. All run through
+dynamic programming, :func:`stage1_pose.beats.beat_times` (beats only); ``combined``: both, the DSP beats or every
+other decoded beat taken where the network's activations support them clearly better than its decoding. All run through
 :func:`stage1_pose.beats.song_beats`.
 """
 

@@ -129,6 +129,20 @@ def test_activations_support_the_right_tempo_and_take_another_trackers_beats_onl
     assert checked(own, probs, beats + 0.01, 120.0) is own
 
 
+def test_a_double_tempo_decoding_gives_way_to_its_half_where_the_activations_peak_every_other_beat():
+    """Peaks every 1 s from 1.0 s; the decoder and the other tracker both at double tempo: the decoded beats on the
+    peaks' phase are taken at half the tempo, with bars from the downbeat activations."""
+    probs = np.zeros((int(12 * FPS), 3), np.float32)
+    probs[:, 0] = 1
+    peaks = np.arange(1.0, 11.1, 1.0)
+    for k, b in enumerate(peaks):
+        probs[frame_of(np.array([b]))[0], :] = (0.1, 0.1, 0.8) if k % 4 == 0 else (0.1, 0.8, 0.1)
+    double = np.arange(0.5, 11.1, 0.5)
+    taken = checked(Decoded(double, double[::4], 4, 120.0), probs, double + 0.01, 120.0)
+    assert np.array_equal(taken.beats, double[1::2]) and taken.bpm == 60.0
+    assert taken.metre == 4 and np.array_equal(taken.downbeats, peaks[::4])
+
+
 def test_song_beats_runs_every_tracker():
     sr = 22050
     y = np.zeros(8 * sr, np.float32)
