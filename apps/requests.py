@@ -222,8 +222,9 @@ DEVICE = Option("auto (GPU when available), cpu or cuda (default auto)", "auto")
 SEED = Option("random seed (default 0)", 0, type=non_negative_int)
 PRECISIONS = ("auto", "fp32", "bf16", "fp16")
 BEATS = Option("beat tracker: learned = a network with a bar decoder (beats and downbeats), dsp = onset tempograms "
-               "and dynamic programming, combined = learned, or dsp's beats where the network supports them clearly "
-               f"better (default {DEFAULT_BEAT_TRACKER})", DEFAULT_BEAT_TRACKER, choices=BEAT_TRACKERS)
+               "and dynamic programming, combined = learned, or dsp's beats or half the learned tempo where the "
+               f"network supports them clearly better (default {DEFAULT_BEAT_TRACKER})", DEFAULT_BEAT_TRACKER,
+               choices=BEAT_TRACKERS)
 BEAT_SNAP = Option("keep the pose model's own timing instead of retiming its movement beats onto the song's beats",
                    True)
 THREADS = Option("CPU threads for torch (default: torch's choice; 1 is faster on a busy machine)", None,
