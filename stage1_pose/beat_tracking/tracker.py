@@ -108,10 +108,11 @@ def checked(decoded: Decoded, probs: np.ndarray, beats: np.ndarray, bpm: float) 
     came from the wrong tempo)."""
     alternatives = [(np.asarray(beats, np.float64), bpm),
                     *((decoded.beats[phase::2], decoded.bpm / 2) for phase in (0, 1))]
-    best, index = max((support(times, probs), -k) for k, (times, _) in enumerate(alternatives))
-    if best <= support(decoded.beats, probs) + SUPPORT_MARGIN:
+    scores = [support(times, probs) for times, _ in alternatives]
+    best = int(np.argmax(scores))
+    if scores[best] <= support(decoded.beats, probs) + SUPPORT_MARGIN:
         return decoded
-    beats, bpm = alternatives[-index]
+    beats, bpm = alternatives[best]
     at_beats = probs[:, 2][_windows(beats, _SUPPORT_FRAMES, len(probs))].max(axis=1)
     # Only reached with at least 2 beats (support is 0 below), so every metre's first phase has beats.
     _, metre, phase = max((at_beats[phase::metre].mean(), metre, phase) for metre in DEFAULT_DECODER.metres
