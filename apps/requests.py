@@ -390,6 +390,10 @@ class ExtractPosesRequest(Request):
                                          type=positive_float, metavar="HZ", flag="--min-cutoff").field()
     beta: float | None = Option("one-euro speed coefficient, higher = less lag on fast moves (default 20)", None,
                                 type=non_negative_float, metavar="B").field()
+    spike_window_s: float | None = Option(
+        "a joint that leaps away and back within this many seconds is swapped back (arms or legs swapped by the "
+        "estimator) or dropped and filled in, before the filter; 0 = off (default 0.12)", None,
+        type=non_negative_float, metavar="SECONDS", flag="--spike-window").field()
     min_visibility: float | None = Option("BlazePose visibility below which a joint counts as absent (default 0.5)",
                                           None, type=fraction, metavar="V").field()
     max_missing: float | None = Option(

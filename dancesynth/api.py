@@ -160,8 +160,8 @@ def render(poses: PoseSequence | PathLike, *, model: PathLike, out: PathLike, au
 
 def extract_poses(video: PathLike, *, out: PathLike | None = None, preview: PathLike | None = None,
                   smoothing: str = "savgol", window_s: float | None = None, min_cutoff_hz: float | None = None,
-                  beta: float | None = None, min_visibility: float | None = None,
-                  max_missing: float | None = None) -> Extraction:
+                  beta: float | None = None, spike_window_s: float | None = None,
+                  min_visibility: float | None = None, max_missing: float | None = None) -> Extraction:
     """One person's BODY_25 skeleton in every frame of ``video`` (BlazePose, on the CPU).
 
     Args:
@@ -169,6 +169,8 @@ def extract_poses(video: PathLike, *, out: PathLike | None = None, preview: Path
         preview: also write an mp4 of the skeleton drawn over the video.
         smoothing: ``savgol`` (no lag), ``one-euro`` (causal) or ``none``.
         window_s: Savitzky-Golay window in seconds. min_cutoff_hz, beta: One-Euro settings.
+        spike_window_s: joints that leap away and back within this many seconds are swapped back or dropped and
+            filled in before the filter (:func:`stage2_video.smoothing.despike`); 0: off.
         min_visibility: BlazePose visibility below which a joint counts as absent.
         max_missing: fail when the person is missing in more than this fraction of the frames.
         Settings left None take :class:`stage2_video.extract.ExtractConfig`'s defaults.
@@ -190,7 +192,8 @@ def extract_poses(video: PathLike, *, out: PathLike | None = None, preview: Path
         if not Path(path).parent.is_dir():
             raise DancesynthError(f"The folder {Path(path).parent} does not exist; create it or choose another path.")
     check_outputs({"pose file": out, "preview": preview}, {"video": video})
-    smoothing_settings = _given(window_s=window_s, min_cutoff_hz=min_cutoff_hz, beta=beta)
+    smoothing_settings = _given(window_s=window_s, min_cutoff_hz=min_cutoff_hz, beta=beta,
+                                spike_window_s=spike_window_s)
     settings = _given(min_visibility=min_visibility, max_missing_fraction=max_missing)
     config = ExtractConfig(smoothing=SmoothingConfig(smoothing, **smoothing_settings), **settings)
     result = extract(video, config)

@@ -2,8 +2,9 @@
 
 Pipeline per video: decode upright frames (:mod:`dancesynth.core.media` applies the container's rotation),
 follow one person with :class:`stage2_video.tracking.PersonTracker`, map BlazePose's 33 landmarks to
-BODY_25, fill joints lost for at most ``max_fill_seconds`` by interpolation in time (longer losses stay absent,
-so no limb is drawn where the estimator saw none), smooth (:mod:`stage2_video.smoothing`).
+BODY_25, put back the joints that leap away for a few frames (arms or legs swapped back, the rest dropped), fill
+joints lost for at most ``max_fill_seconds`` by interpolation in time (longer losses stay absent, so no limb is
+drawn where the estimator saw none), smooth (:mod:`stage2_video.smoothing`).
 
 BlazePose -> BODY_25: Neck = mid-shoulders, MidHip = mid-hips (confidence = the smaller of the pair),
 heel = heel, big toe = foot index (BlazePose's toe-tip point). BlazePose has no small-toe point, so
@@ -29,7 +30,7 @@ from dancesynth.core.fileio import require_file
 from dancesynth.core.media import VideoWriter, probe_video, read_frames
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import JOINT_INDEX, NECK, NUM_JOINTS, ROOT, PoseSequence, interpolate_missing
-from stage2_video.smoothing import SmoothingConfig, smooth
+from stage2_video.smoothing import SmoothingConfig, despike, smooth
 from stage2_video.tracking import Box, PersonTracker, TrackerConfig, TrackStats
 
 logger = logging.getLogger(__name__)
@@ -56,7 +57,7 @@ class ExtractConfig:
         max_missing_fraction: above this fraction of frames without the person, extraction fails.
         max_fill_seconds: a joint lost for longer than this stays absent instead of being interpolated.
         tracker: person tracking thresholds.
-        smoothing: temporal filter applied after gap filling.
+        smoothing: spike removal (before gap filling) and the temporal filter applied after it.
     """
 
     min_visibility: float = 0.5
@@ -248,7 +249,8 @@ def extract_frames(frames: Iterable[np.ndarray], fps: float, size: tuple[int, in
         raise DancesynthError(f"No person was found in {missing:.0%} of the frames in {source}; "
                               "use a video where one person is fully visible.")
     seq = PoseSequence(np.stack(raw), fps, size[0], size[1])
-    seq = smooth(interpolate_missing(seq, max_gap=round(config.max_fill_seconds * fps)), config.smoothing)
+    seq = interpolate_missing(despike(seq, config.smoothing), max_gap=round(config.max_fill_seconds * fps))
+    seq = smooth(seq, config.smoothing)
     return Extraction(seq, found, tracker.stats)
 
 

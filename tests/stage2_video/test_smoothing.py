@@ -1,11 +1,11 @@
-"""Temporal smoothing of extracted poses."""
+"""Temporal clean-up of extracted poses: spikes and smoothing."""
 
 import numpy as np
 import pytest
 
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.skeleton import PoseSequence
-from stage2_video.smoothing import SmoothingConfig, smooth
+from dancesynth.core.skeleton import JOINT_INDEX, PoseSequence, interpolate_missing
+from stage2_video.smoothing import SmoothingConfig, despike, smooth
 
 FPS = 30.0
 
@@ -54,3 +54,45 @@ def test_bad_smoothing_options_raise_clear_errors():
         SmoothingConfig("gauss")
     with pytest.raises(DancesynthError, match="must be positive"):
         SmoothingConfig("one-euro", min_cutoff_hz=0)
+
+
+def arm_circles(frames: int = 60, hz: float = 1.5, radius: float = 80.0) -> PoseSequence:
+    """A person standing still (torso 100 px, arms out to each side) whose wrists circle at ``hz`` with ``radius``
+    pixels: fast, smooth motion."""
+    kp = np.zeros((frames, 25, 3))
+    for name, (x, y) in {"Neck": (240, 100), "MidHip": (240, 200), "RShoulder": (215, 100), "LShoulder": (265, 100),
+                         "RElbow": (170, 110), "LElbow": (310, 110), "RHip": (225, 200), "LHip": (255, 200),
+                         "RKnee": (225, 260), "LKnee": (255, 260), "RAnkle": (225, 320), "LAnkle": (255, 320)}.items():
+        kp[:, JOINT_INDEX[name]] = (x, y, 1.0)
+    angle = 2 * np.pi * hz * np.arange(frames) / FPS
+    for name, x in (("RWrist", 120), ("LWrist", 360)):
+        kp[:, JOINT_INDEX[name]] = np.c_[x + radius * np.cos(angle), 110 + radius * np.sin(angle), np.ones(frames)]
+    return PoseSequence(kp, FPS, 480, 360)
+
+
+def test_despike_keeps_fast_smooth_motion():
+    seq = arm_circles()
+    np.testing.assert_array_equal(despike(seq, SmoothingConfig()).keypoints, seq.keypoints)
+
+
+def test_despike_swaps_back_arms_the_estimator_swapped():
+    seq = arm_circles()
+    kp = seq.keypoints.copy()
+    right, left = [JOINT_INDEX[n] for n in ("RShoulder", "RElbow", "RWrist")], [
+        JOINT_INDEX[n] for n in ("LShoulder", "LElbow", "LWrist")]
+    kp[30:32, right + left] = seq.keypoints[30:32, left + right]
+    np.testing.assert_array_equal(despike(seq.replace(kp), SmoothingConfig()).keypoints, seq.keypoints)
+
+
+def test_despike_drops_a_wrist_that_leaps_away_and_back_and_gap_filling_puts_it_near_its_path():
+    seq = arm_circles()
+    wrist = JOINT_INDEX["RWrist"]
+    kp = seq.keypoints.copy()
+    kp[20:23, wrist, :2] = (230, 190)  # on the hip for three frames, as BlazePose sometimes puts an arm
+    out = despike(seq.replace(kp), SmoothingConfig())
+    dropped = np.argwhere((out.confidence == 0) & (seq.confidence > 0))
+    assert dropped.tolist() == [[20, wrist], [21, wrist], [22, wrist]]
+    filled = interpolate_missing(out)
+    assert np.linalg.norm(filled.xy[20:23, wrist] - seq.xy[20:23, wrist], axis=-1).max() < 0.3 * 100
+    # Off, nothing changes.
+    np.testing.assert_array_equal(despike(seq.replace(kp), SmoothingConfig(spike_window_s=0)).keypoints, kp)
