@@ -19,7 +19,7 @@ Sources, none of them a test-half piece or made from one:
   ``_MMA_SECONDS`` s of chords in one groove, written to MIDI by MMA (the benchmark's :func:`mma_song`), rendered by
   fluidsynth with a random gain, reverb room and level. Kept when its MIDI time signatures are x/4 with x in 2-4
   (the grid is then exact; MMA writes 6/8 loosely). Library files a test piece plays from are left out, grooves and
-  all.
+  all, and so are the benchmark's held-out grooves (``HOLDOUT``).
 * MMA's example songs (``mma``'s documentation, GPL-2.0+) whose ``.mma`` plays no groove of those files, and the
   OpenTTD OpenMSX pieces the benchmark does not hold (GPL-2.0), rendered the same way, grids from their MIDI time
   signatures.
@@ -69,9 +69,9 @@ def _groove_names(path: Path) -> list[str]:
     return re.findall(r"^\s*DefGroove\s+(\S+)", path.read_text(errors="replace"), re.MULTILINE | re.IGNORECASE)
 
 
-def _test_libraries() -> set[str]:
-    """MMA library files (package paths) that test-half pieces play from."""
-    return {p.path for p in PIECES if p.source == "mma" and SPLIT[p.id] == "test"}
+def _library_files(split: str) -> set[str]:
+    """MMA library files (package paths) that the benchmark's pieces of ``split`` play from."""
+    return {p.path for p in PIECES if p.source == "mma" and SPLIT[p.id] == split}
 
 
 def _simple_metre(mid: Path) -> bool:
@@ -107,15 +107,18 @@ def _midi_item(out: Path, mid: Path, tmp: Path, rng: np.random.Generator, max_se
 
 
 def _groove_songs(cache: Path, corpus: Path, grooves: list[tuple[Path, str]], rng: np.random.Generator, count: int,
-                  bpm_range: tuple[float, float], prefix: str) -> list[Path]:
+                  bpm_range: tuple[float, float], prefix: str, skip: set[Path]) -> list[Path]:
     """``count`` songs of grooves drawn from ``grooves`` (library file, name) at log-uniform tempi in ``bpm_range``,
-    rendered into ``corpus`` as ``<prefix>-<library>-<groove>.npz`` where missing; the files of those in 2-4/4."""
+    rendered into ``corpus`` as ``<prefix>-<library>-<groove>.npz`` where missing; the files of those in 2-4/4,
+    leaving out those drawn from a library file in ``skip``."""
     pkgs = cache / "pkgs"
     files = []
     for n in sorted(rng.choice(len(grooves), size=min(count, len(grooves)), replace=False)):
         lib, groove = grooves[n]
         bpm = float(np.exp(rng.uniform(*np.log(bpm_range))))
         gain_options = _render_options(rng)
+        if lib in skip:
+            continue
         out = corpus / f"{prefix}-{lib.parent.name}-{groove}.npz"
         if not out.exists():
             piece = Piece(out.stem, (), "mma", str(lib.relative_to(pkgs / "mma")), "GPL-2.0-or-later", "mma",
@@ -140,22 +143,25 @@ def build_corpus(cache: Path, corpus: Path) -> list[Path]:
     corpus.mkdir(parents=True, exist_ok=True)
     pkgs = cache / "pkgs"
     rng = np.random.default_rng(_SEED)
-    test_libs = _test_libraries()
-    test_grooves = {g.lower() for lib in test_libs for g in _groove_names(pkgs / "mma" / lib)}
+    test_libs, holdout_libs = _library_files("test"), _library_files("holdout")
+    unheard = {g.lower() for lib in test_libs | holdout_libs for g in _groove_names(pkgs / "mma" / lib)}
     libraries = sorted(p for p in (pkgs / "mma" / _MMA_LIB).glob("*/*.mma")
                        if str(p.relative_to(pkgs / "mma")) not in test_libs)
     grooves = [(lib, g) for lib in libraries for g in _groove_names(lib)]
-    files = _groove_songs(cache, corpus, grooves, rng, _MMA_SONGS, _MMA_BPM, "mma")
+    # The held-out grooves are skipped after the draw (none was drawn for the shipped networks), so the draws and
+    # the corpus stay those the shipped networks trained on.
+    skip = {pkgs / "mma" / lib for lib in holdout_libs}
+    files = _groove_songs(cache, corpus, grooves, rng, _MMA_SONGS, _MMA_BPM, "mma", skip)
     # Slow songs again, from their own seed so the pass above draws what it drew before.
     files += _groove_songs(cache, corpus, grooves, np.random.default_rng(_SEED + 1), _MMA_SLOW_SONGS, _MMA_SLOW_BPM,
-                           "mma-slow")
+                           "mma-slow", skip)
     benchmark_files = {p.path for p in PIECES}
     midi_songs: list[tuple[Path, Path]] = []  # (corpus file, MIDI file) of the songs rendered as they are
     for mma in sorted((pkgs / "mma" / _MMA_EXAMPLES).glob("*/*.mma")):
         mid = mma.with_suffix(".mid")
         used = {g.lower() for g in re.findall(r"^\s*Groove\s+(\S+)", mma.read_text(errors="replace"),
                                                re.MULTILINE | re.IGNORECASE)}
-        if not mid.exists() or used & test_grooves or str(mid.relative_to(pkgs / "mma")) in benchmark_files:
+        if not mid.exists() or used & unheard or str(mid.relative_to(pkgs / "mma")) in benchmark_files:
             continue
         midi_songs.append((corpus / f"example-{mma.parent.name}-{mma.stem}.npz", mid))
     for mid in sorted((pkgs / "openttd-openmsx" / _OPENMSX).glob("*.mid")):

@@ -13,6 +13,9 @@ _SPEC = importlib.util.spec_from_file_location("beat_benchmark", _PATH)
 bb = importlib.util.module_from_spec(_SPEC)
 sys.modules["beat_benchmark"] = bb  # dataclasses look their module up while the class is made
 _SPEC.loader.exec_module(bb)
+_TRAIN_SPEC = importlib.util.spec_from_file_location("train_beat_tracker", _PATH.with_name("train_beat_tracker.py"))
+train_beat_tracker = importlib.util.module_from_spec(_TRAIN_SPEC)
+_TRAIN_SPEC.loader.exec_module(train_beat_tracker)
 
 # The first benchmark's pieces: the project's tracker was tuned on them, so they may only be in dev.
 TUNED_ON = ("metal-armygeddon", "metal-chaos_god", "metal-mutilated_mime", "rock-escape_from_chaosland",
@@ -75,16 +78,25 @@ def test_midi_grid_follows_tempo_and_time_signature(tmp_path):
 
 def test_split_is_fixed_complete_and_balanced_by_kind():
     ids = [p.id for p in bb.PIECES]
-    assert len(ids) == len(set(ids)) >= 40
-    assert set(bb.SPLIT) == set(ids) and set(bb.SPLIT.values()) == {"dev", "test"}
+    assert len(ids) == len(set(ids))
+    assert set(bb.SPLIT) == set(ids) and set(bb.SPLIT.values()) == {"dev", "test", "holdout"}
     assert all(bb.SPLIT[i] == "dev" for i in TUNED_ON)
-    for main in {p.kinds[0] for p in bb.PIECES}:
-        counts = Counter(bb.SPLIT[p.id] for p in bb.PIECES if p.kinds[0] == main)
-        tuned = sum(p.kinds[0] == main for p in bb.PIECES if p.id in TUNED_ON)
+    halves = [p for p in bb.PIECES if bb.SPLIT[p.id] != "holdout"]
+    assert len(halves) >= 40
+    for main in {p.kinds[0] for p in halves}:
+        counts = Counter(bb.SPLIT[p.id] for p in halves if p.kinds[0] == main)
+        tuned = sum(p.kinds[0] == main for p in halves if p.id in TUNED_ON)
         assert abs(counts["dev"] - counts["test"]) <= 1 or counts["dev"] == tuned, main
-    covered = [k for k in bb.KINDS if {bb.SPLIT[p.id] for p in bb.PIECES if k in p.kinds} == {"dev", "test"}]
+    covered = [k for k in bb.KINDS if {bb.SPLIT[p.id] for p in halves if k in p.kinds} == {"dev", "test"}]
     assert len(covered) >= 8
     assert all(set(p.kinds) <= set(bb.KINDS) for p in bb.PIECES)
+
+
+def test_held_out_grooves_play_no_test_library_file_and_are_left_out_of_training():
+    held_out = {p.path for p in bb.HOLDOUT}
+    assert len(held_out) == len(bb.HOLDOUT) >= 40 and all(bb.SPLIT[p.id] == "holdout" for p in bb.HOLDOUT)
+    assert not held_out & train_beat_tracker._library_files("test")
+    assert train_beat_tracker._library_files("holdout") == held_out
 
 
 def test_tempo_kinds():
