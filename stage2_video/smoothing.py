@@ -1,5 +1,5 @@
-"""Temporal clean-up of extracted poses: spikes dropped, then Savitzky-Golay (zero lag, offline) or One-Euro
-(causal) smoothing.
+"""Temporal clean-up of extracted poses: joints that leap away for a few frames put back (:func:`despike`), then
+Savitzky-Golay (zero lag, offline) or One-Euro (causal) smoothing.
 
 The filters act on x, y of each joint over time and leave confidence unchanged. Absent joints (confidence 0) are
 neither used nor changed, so run :func:`dancesynth.core.skeleton.interpolate_missing` first to smooth across gaps
@@ -36,7 +36,7 @@ class SmoothingConfig:
         min_cutoff_hz: One-Euro cut-off frequency at rest, in Hz; lower is smoother.
         beta: One-Euro speed coefficient, per (frame height per second); higher follows fast moves better.
         spike_window_s: half the window, in seconds, whose median position a joint is compared with
-            (:func:`despike`); a leap away and back shorter than this is dropped. 0: none is.
+            (:func:`despike`); a leap away and back within it is swapped back or dropped. 0: off.
         spike_torso: how far from that median, in the clip's torso lengths (neck to mid-hip), a joint counts as a
             spike.
     """
@@ -54,7 +54,8 @@ class SmoothingConfig:
             raise DancesynthError(f"Unknown smoothing {self.method!r}; use one of {', '.join(METHODS)}.")
         if (self.window_s < 0 or self.min_cutoff_hz <= 0 or self.beta < 0 or self.order < 1
                 or self.spike_window_s < 0 or self.spike_torso <= 0):
-            raise DancesynthError("Smoothing window, cut-off and beta must be positive; check the smoothing options.")
+            raise DancesynthError("Smoothing and spike windows, cut-off and beta must be positive; check the smoothing "
+                                  "options.")
 
 
 def despike(seq: PoseSequence, config: SmoothingConfig) -> PoseSequence:

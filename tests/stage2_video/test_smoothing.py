@@ -54,6 +54,8 @@ def test_bad_smoothing_options_raise_clear_errors():
         SmoothingConfig("gauss")
     with pytest.raises(DancesynthError, match="must be positive"):
         SmoothingConfig("one-euro", min_cutoff_hz=0)
+    with pytest.raises(DancesynthError, match="must be positive"):
+        SmoothingConfig(spike_window_s=-0.1)
 
 
 def arm_circles(frames: int = 60, hz: float = 1.5, radius: float = 80.0) -> PoseSequence:
