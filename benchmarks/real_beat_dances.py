@@ -4,7 +4,7 @@
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/real_beat_dances.py --models RUN [RUN ...] [--per-song]
 
 For every trained stage-1 run, every song of the real-music beat benchmark (its first ``--seconds``; ``--split
-dev|test`` keeps the benchmark's half, default all) and every seed, the dance comes from
+dev|test|holdout`` keeps that split of the benchmark, default all) and every seed, the dance comes from
 :func:`stage1_pose.generate.generate_dance` with the song's beats and downbeats tracked once by the default tracker,
 as in ``dancesynth generate``. Its kinematic beats, by both definitions of :mod:`dancesynth.core.motion`
 (``vmin``: minima of the smoothed joint speed; ``d2m``: Dancing2Music's kinematic offsets), are scored against the
@@ -162,8 +162,8 @@ def main() -> None:
     parser.add_argument("--snap", nargs="+", choices=TIMINGS, default=["raw", "snap"],
                         help="rows for the methods' own timing (raw), the retiming onto beats alone (beats), "
                              "the product's retiming (snap)")
-    parser.add_argument("--split", choices=("dev", "test", "all"), default="all",
-                        help="the beat benchmark's half to dance (beat_benchmark.SPLIT)")
+    parser.add_argument("--split", choices=("dev", "test", "holdout", "all"), default="all",
+                        help="the beat benchmark's split to dance (beat_benchmark.SPLIT)")
     args = parser.parse_args()
     assert SR == SONG_SAMPLE_RATE, "the benchmark cache must hold songs at the project's song sample rate"
     infos = [json.loads(p.read_text()) for p in sorted((args.cache / "audio").glob("*.json"))]
