@@ -1,5 +1,5 @@
 """Beat benchmark that cannot be tuned to: recorded songs and rendered scores with known beat and bar grids,
-tagged by kind, in a fixed dev / test split.
+tagged by kind, in a fixed dev / test split, and a held-out set of grooves the learned tracker never heard.
 
     .venv/bin/pip install -e ".[bench]"; apt-get install fluidsynth fluid-soundfont-gm musescore3   # once, as root
     .venv/bin/python benchmarks/beat_benchmark.py fetch   # downloads Debian packages, renders, writes ground truth
@@ -55,9 +55,9 @@ the tuned-on pieces if they are more. Make every choice on dev; score test once 
 Held-out grooves (``HOLDOUT``, split "holdout"): the dev half is in the learned tracker's training data, so it stopped
 showing that tracker's failures. These 77 pieces are MMA library files in 3/4 or 4/4 none of whose grooves the
 shipped networks trained on (as groove songs or in MMA's example songs; nor any test piece plays from), each file's
-first groove at a tempo drawn from the
-SHA-1 of its path (log-uniform 60-190 BPM), kinds from the file's name and the tempo. ``train_beat_tracker.py``
-leaves their files out, so the split stays unheard; it is a second dev set for choices, not a test.
+first groove at a tempo drawn from the SHA-1 of its path (log-uniform 60-190 BPM), kinds from the file's name and
+the tempo. ``train_beat_tracker.py`` leaves their files out, so the split stays unheard; it is a second dev set for
+choices, not a test.
 
 Beats count from the first to the last moment the audio is within 30 dB of its loudest 50-ms frame, so silent
 intros and tails carry no beats (nor downbeats). ``run`` scores each tracker with ``mir_eval.beat`` without
@@ -320,6 +320,8 @@ HOLDOUT: tuple[Piece, ...] = (
     _mma("holdout-zoom-samba", ("latin",), "zoom/samba", "SAMBA01", 115),
 )
 
+PIECES += HOLDOUT
+
 # Drawn once before any tracker ran on the new pieces (see the docstring); pieces are added, never moved.
 SPLIT: dict[str, str] = {
     "metal-armygeddon": "dev", "metal-chaos_god": "dev", "metal-mutilated_mime": "dev",
@@ -345,7 +347,6 @@ SPLIT: dict[str, str] = {
     "pop-dancepop_124": "dev", "pop-popballad_72": "dev",
     **{piece.id: "holdout" for piece in HOLDOUT},
 }
-PIECES += HOLDOUT
 
 
 def beat_unit(numerator: int, denominator: int, ticks_per_quarter: int) -> tuple[float, int]:
@@ -536,6 +537,11 @@ def render_midi(mid: Path, tmp: Path, gain: float = 0.3, rate: int = 44100,
     return load_audio(wav)
 
 
+def _truth(cache: Path, piece_id: str) -> Path:
+    """A piece's ground-truth JSON (written after its audio, ``<id>.flac`` beside it)."""
+    return cache / "audio" / f"{piece_id}.json"
+
+
 def _write(cache: Path, piece: Piece, y: np.ndarray, beats: np.ndarray, downbeats: np.ndarray, extra: dict) -> None:
     import soundfile as sf
 
@@ -549,12 +555,12 @@ def _write(cache: Path, piece: Piece, y: np.ndarray, beats: np.ndarray, downbeat
     copyright_src = cache / "pkgs" / piece.package / "usr/share/doc" / piece.package / "copyright"
     (cache / "licences").mkdir(exist_ok=True)
     shutil.copyfile(copyright_src, cache / "licences" / f"{piece.package}.copyright")
-    sf.write(cache / "audio" / f"{piece.id}.flac", y, SR)
+    sf.write(_truth(cache, piece.id).with_suffix(".flac"), y, SR)
     info = {"id": piece.id, "kinds": list(piece.kinds), "package": piece.package, "file": piece.path,
             "licence": piece.licence, "copyright": f"licences/{piece.package}.copyright",
             "bpm": round(float(60.0 / np.median(np.diff(beats))), 2), "metre": metre, "seconds": round(len(y) / SR, 2),
             **extra, "beats": [round(float(b), 4) for b in beats], "downbeats": [round(float(b), 4) for b in downbeats]}
-    (cache / "audio" / f"{piece.id}.json").write_text(json.dumps(info, indent=1))
+    _truth(cache, piece.id).write_text(json.dumps(info, indent=1))
     print(f"{piece.id:30s} {info['bpm']:6.1f} BPM {metre}/bar {len(beats):4d} beats  {extra}", flush=True)
 
 
@@ -568,7 +574,7 @@ def fetch(cache: Path) -> None:
     (cache / "audio").mkdir(exist_ok=True)
     lags = []
     for piece in (p for p in PIECES if p.source != "fof"):
-        done = cache / "audio" / f"{piece.id}.json"
+        done = _truth(cache, piece.id)
         if done.is_file():  # written last: the piece is complete
             lags.append(json.loads(done.read_text())["onset_lag_ms"] / 1000)
             continue
@@ -581,7 +587,7 @@ def fetch(cache: Path) -> None:
         _write(cache, piece, y, beats, downbeats, {"onset_lag_ms": round(1000 * lag)})
     lag = float(np.median(lags))
     print(f"onset-envelope lag on rendered MIDI (true offset 0): median {1000 * lag:.0f} ms")
-    for piece in (p for p in PIECES if p.source == "fof" and not (cache / "audio" / f"{p.id}.json").is_file()):
+    for piece in (p for p in PIECES if p.source == "fof" and not _truth(cache, p.id).is_file()):
         folder = cache / "pkgs" / piece.package / piece.path
         beats, downbeats, chart = midi_grid(folder / "notes.mid", notes=_EXPERT_NOTES)
         offset, ratio, width = _peak(_phase_scores(load_audio(folder / "guitar.ogg"), chart))

@@ -148,8 +148,8 @@ def build_corpus(cache: Path, corpus: Path) -> list[Path]:
     libraries = sorted(p for p in (pkgs / "mma" / _MMA_LIB).glob("*/*.mma")
                        if str(p.relative_to(pkgs / "mma")) not in test_libs)
     grooves = [(lib, g) for lib in libraries for g in _groove_names(lib)]
-    # The held-out grooves are skipped after the draw (none was drawn for the shipped networks), so the draws and
-    # the corpus stay those the shipped networks trained on.
+    # The held-out grooves are skipped after the draw (the shipped corpus holds none of them), so the draws and the
+    # corpus stay those the shipped networks trained on.
     skip = {pkgs / "mma" / lib for lib in holdout_libs}
     files = _groove_songs(cache, corpus, grooves, rng, _MMA_SONGS, _MMA_BPM, "mma", skip)
     # Slow songs again, from their own seed so the pass above draws what it drew before.

@@ -99,6 +99,19 @@ def test_held_out_grooves_play_no_test_library_file_and_are_left_out_of_training
     assert train_beat_tracker._library_files("holdout") == held_out
 
 
+def test_training_skips_grooves_of_held_out_files_without_rendering_them(tmp_path, capsys):
+    """A groove drawn from a held-out library file is left out before MMA is asked to play it (here there is no
+    such file, so MMA would report a failure); the same groove not held out is tried."""
+    lib = tmp_path / "pkgs" / "mma" / "usr/share/mma/lib/casio/held.mma"
+
+    def songs(skip: set) -> list:
+        return train_beat_tracker._groove_songs(tmp_path, tmp_path, [(lib, "Held")], np.random.default_rng(0), 1,
+                                                (60.0, 190.0), "mma", skip)
+
+    assert songs({lib}) == [] and "MMA failed" not in capsys.readouterr().out
+    assert songs(set()) == [] and "mma-casio-Held: MMA failed" in capsys.readouterr().out
+
+
 def test_tempo_kinds():
     assert bb.tempo_kinds(np.arange(0, 10, 60 / 160)) == {"fast"}
     assert bb.tempo_kinds(np.arange(0, 10, 60 / 80)) == {"slow"}
