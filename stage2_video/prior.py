@@ -17,7 +17,8 @@ retrieval). Here, for every pose to render:
 2. **Parts** (:func:`part_labels`): the source frame's person mask (:mod:`stage2_video.masks`) is split into head,
    torso, upper arms, forearms, hands, thighs, shins and feet by the nearest drawn bone (a hand belongs to
    its arm even where it rests on the torso or a thigh); torso pixels hidden by an arm are filled in from around
-   them.
+   them. Pixels outside the hands coloured like the bank's hands and unlike their own part (a glove the pose put
+   elsewhere) take the colour of the part around them (:func:`clean_strays`).
 3. **Warping** (:func:`warp_parts`): each pose's size is measured by its longest bones against the bank's
    (:func:`body_scale`: foreshortening only shortens a bone), and the ratio of the two sizes scales every part.
    The torso is stretched along its spine (neck to mid-hip) onto the target's and scaled by that ratio across it;
@@ -86,6 +87,13 @@ OCCLUSION_REACH = {"core": 0.3, "right leg": 0.2, "left leg": 0.2}
 OCCLUDED_BONES = {"core": ((J["Neck"], J["Nose"]), (J["Neck"], J["MidHip"])),
                   "right leg": ((J["RHip"], J["RKnee"]), (J["RKnee"], J["RAnkle"])),
                   "left leg": ((J["LHip"], J["LKnee"]), (J["LKnee"], J["LAnkle"]))}
+# The person's colours per part are counted in bins of this many levels a channel, over this many bank frames.
+COLOUR_LEVELS = 8
+COLOUR_FRAMES = 128
+# A pixel outside the hands whose colour is this many times likelier in a hand than in its own part is a hand the
+# pose put elsewhere (a glove at the hip labelled thigh, 200-1400 times); the dancer's gloves, not sports2d's light
+# on his legs (docs/methods/warped_prior.md).
+STRAY_RATIO = 100.0
 
 
 @dataclass(frozen=True)
@@ -147,6 +155,7 @@ PARTS: tuple[Part, ...] = (
     Part("left hand", (), _L_FOREARM, True, 0.35, 0.25, "left arm"),
 )
 TORSO = 0
+HAND_PARTS = tuple(i for i, part in enumerate(PARTS) if part.name.endswith(" hand"))
 # The torso quadrilateral: its pixels are at distance 0 from the torso.
 TORSO_CORNERS = (J["RShoulder"], J["LShoulder"], J["LHip"], J["RHip"])
 TORSO_JOINTS = (J["Neck"], J["RShoulder"], J["LShoulder"], J["MidHip"], J["RHip"], J["LHip"])
@@ -372,6 +381,51 @@ def part_labels(mask: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
     return labels
 
 
+def colour_index(image: np.ndarray) -> np.ndarray:
+    """``[H, W]`` int bin of each pixel of an ``[H, W, 3]`` uint8 image: :data:`COLOUR_LEVELS` levels a channel."""
+    step = 256 // COLOUR_LEVELS
+    bins = image // step
+    return (bins[..., 0].astype(np.int32) * COLOUR_LEVELS + bins[..., 1]) * COLOUR_LEVELS + bins[..., 2]
+
+
+def part_colours(images: list[np.ndarray], labels: list[np.ndarray]) -> np.ndarray:
+    """``[len(PARTS), COLOUR_LEVELS**3]``: how often each part of the person takes each colour (one in a bin added
+    everywhere, each row summing to 1), from frames' ``[H, W, 3]`` uint8 images and their :func:`part_labels`."""
+    counts = np.ones((len(PARTS), COLOUR_LEVELS ** 3))
+    for image, label in zip(images, labels):
+        on = label != NO_PART
+        np.add.at(counts, (label[on], colour_index(image)[on]), 1)
+    return counts / counts.sum(1, keepdims=True)
+
+
+def _paint_nearest(image: np.ndarray, source: np.ndarray, holes: np.ndarray) -> np.ndarray:
+    """A copy of ``image`` (``[H, W, 3]``) whose ``holes`` pixels take the colour of the nearest ``source`` pixel (both
+    ``[H, W]`` bool, ``source`` not empty)."""
+    _, nearest = cv2.distanceTransformWithLabels(np.where(source, 0, 255).astype(np.uint8), cv2.DIST_L2, 5,
+                                                 labelType=cv2.DIST_LABEL_PIXEL)
+    ys, xs = np.nonzero(source)  # DIST_LABEL_PIXEL numbers the zero pixels from 1 in raster order
+    hy, hx = np.nonzero(holes)
+    taken = nearest[hy, hx] - 1
+    painted = image.copy()
+    painted[hy, hx] = image[ys[taken], xs[taken]]
+    return painted
+
+
+def clean_strays(image: np.ndarray, labels: np.ndarray, colours: np.ndarray) -> np.ndarray:
+    """``image`` (``[H, W, 3]`` uint8, ``labels`` its :func:`part_labels`) with every pixel outside the hands whose
+    colour is :data:`STRAY_RATIO` times likelier in a hand than in its own part (``colours``: :func:`part_colours` of
+    the bank) painted with the nearest other person pixel's colour. A hand the pose put elsewhere lies in another
+    part's region and would move with that part: a glove between the thighs of every pose the legs serve."""
+    on = labels != NO_PART
+    index = colour_index(image)
+    own = colours[np.where(on, labels, 0), index]
+    stray = on & ~np.isin(labels, HAND_PARTS) & (own * STRAY_RATIO < colours[list(HAND_PARTS)][:, index].max(0))
+    keep = on & ~stray
+    if not stray.any() or not keep.any():
+        return image
+    return _paint_nearest(image, keep, stray)
+
+
 def fill_torso(image: np.ndarray, labels: np.ndarray, keypoints: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The torso's region of one frame: its own pixels plus the quadrilateral between shoulders and hips
     (``[H, W]`` bool), and ``image`` with the pixels of that region which limbs cover filled in from the torso
@@ -388,14 +442,7 @@ def fill_torso(image: np.ndarray, labels: np.ndarray, keypoints: np.ndarray) -> 
     if not holes.any():
         return image, region
     # Each hole pixel takes the colour of the nearest torso pixel (inpainting would draw on the background too).
-    _, nearest = cv2.distanceTransformWithLabels(np.where(region, 0, 255).astype(np.uint8), cv2.DIST_L2, 5,
-                                                 labelType=cv2.DIST_LABEL_PIXEL)
-    ys, xs = np.nonzero(region)  # DIST_LABEL_PIXEL numbers the zero pixels from 1 in raster order
-    hy, hx = np.nonzero(holes)
-    source = nearest[hy, hx] - 1
-    filled = image.copy()
-    filled[hy, hx] = image[ys[source], xs[source]]
-    return filled, region | holes
+    return _paint_nearest(image, region, holes), region | holes
 
 
 def similarity(src: np.ndarray, dst: np.ndarray, scale: float | None = None) -> np.ndarray:
@@ -600,6 +647,9 @@ class FrameBank:
         self.overlaps = hand_overlaps(self.keypoints[self.members])
         self.places = None if scene is None else scene_places(np.asarray(scene)[self.members])
         self.reference = reference_lengths(self.keypoints[self.members])
+        sample = self.members[np.linspace(0, len(self.members) - 1, min(COLOUR_FRAMES, len(self.members))).astype(int)]
+        self.colours = part_colours([np.asarray(self.frames[t]) for t in sample],
+                                    [part_labels(np.asarray(self.masks[t]), self.keypoints[t]) for t in sample])
         self._sources: OrderedDict[int, Source] = OrderedDict()
         self._cache_size = cache_size
 
@@ -613,7 +663,7 @@ class FrameBank:
             return self._sources[t]
         kp = self.keypoints[t]
         labels = part_labels(np.asarray(self.masks[t]), kp)
-        image = np.asarray(self.frames[t])
+        image = clean_strays(np.asarray(self.frames[t]), labels, self.colours)
         torso_image, torso = fill_torso(image, labels, kp)
         source = Source(image, torso_image, labels, torso, kp)
         self._sources[t] = source

@@ -10,6 +10,7 @@ from dancesynth.core.skeleton import JOINT_INDEX as J
 from stage2_video.masks import person_mask
 from stage2_video.prior import (
     GROUPS,
+    HAND_PARTS,
     NO_PART,
     PARTS,
     TORSO,
@@ -197,6 +198,27 @@ def test_the_torso_takes_no_arm_pixels_beyond_its_shoulders():
     cv2.fillConvexPoly(quad, np.round(kp[list(TORSO_CORNERS), :2]).astype(np.int32), 1)
     taken = region & (labels != TORSO)
     assert taken.any() and not (taken & (quad == 0)).any()
+
+
+def test_a_glove_the_pose_put_elsewhere_takes_the_colour_of_the_part_it_lies_on():
+    # A dark suit with red gloves; in the last frame the pose misread a hand, so a glove lies on the left thigh.
+    kp = standing_pose()
+    _, mask = textured_person(kp)
+    labels = part_labels(mask, kp)
+    image = np.zeros((SIZE, SIZE, 3), np.uint8)
+    image[labels != NO_PART] = (30, 30, 40)
+    image[np.isin(labels, HAND_PARTS)] = (200, 20, 20)
+    misread = image.copy()
+    glove = np.zeros((SIZE, SIZE), bool)
+    cv2.circle(glove.view(np.uint8), (71, 78), 3, 1, -1)
+    assert (labels[glove] == PARTS.index(next(p for p in PARTS if p.name == "left thigh"))).all()
+    misread[glove] = (200, 20, 20)
+    frames = np.stack([image] * 40 + [misread])
+    bank = FrameBank(frames, np.stack([mask] * 41), np.stack([kp] * 41), np.arange(41))
+    cut = bank.source(40).image
+    assert (cut[glove] == (30, 30, 40)).all()
+    assert (cut[np.isin(labels, HAND_PARTS)] == (200, 20, 20)).all()  # the hands themselves keep their gloves
+    assert (bank.source(0).image == image).all()
 
 
 def _bank(poses: np.ndarray) -> FrameBank:
