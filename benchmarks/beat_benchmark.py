@@ -322,6 +322,8 @@ HOLDOUT: tuple[Piece, ...] = (
 
 PIECES += HOLDOUT
 
+# The splits a piece may be in (SPLIT's values); "all" on the command lines means every one.
+SPLITS = ("dev", "test", "holdout")
 # Drawn once before any tracker ran on the new pieces (see the docstring); pieces are added, never moved.
 SPLIT: dict[str, str] = {
     "metal-armygeddon": "dev", "metal-chaos_god": "dev", "metal-mutilated_mime": "dev",
@@ -658,7 +660,7 @@ def _column_means(rows: Sequence[Sequence[float]]) -> list[float]:
 
 def run(cache: Path, split: str, only: str | None) -> None:
     """Print markdown tables of F, CMLt, AMLt and downbeat F per piece and per kind for each tracker, and the
-    tempi, over the pieces of ``split`` ("dev", "test" or "all")."""
+    tempi, over the pieces of ``split`` (one of :data:`SPLITS`, or "all")."""
     from stage1_pose.beats import dance_tempo, tempo
 
     infos = [json.loads(p.read_text()) for p in sorted((cache / "audio").glob("*.json"))]
@@ -712,7 +714,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("command", choices=("fetch", "run", "speed"))
     parser.add_argument("--cache", type=Path, default=DEFAULT_CACHE)
-    parser.add_argument("--split", choices=("dev", "test", "holdout", "all"), default="dev",
+    parser.add_argument("--split", choices=(*SPLITS, "all"), default="dev",
                         help="run: score this split (see SPLIT); dev (and holdout) for every choice, test once per "
                              "change")
     parser.add_argument("--only", help="run: score only pieces whose id contains this text")

@@ -38,7 +38,7 @@ import json
 from pathlib import Path
 
 import numpy as np
-from beat_benchmark import _FOF, DEFAULT_CACHE, SPLIT, SR, load_audio
+from beat_benchmark import _FOF, DEFAULT_CACHE, SPLIT, SPLITS, SR, load_audio
 
 from dancesynth.core.media import SONG_SAMPLE_RATE
 from dancesynth.core.motion import (
@@ -162,7 +162,7 @@ def main() -> None:
     parser.add_argument("--snap", nargs="+", choices=TIMINGS, default=["raw", "snap"],
                         help="rows for the methods' own timing (raw), the retiming onto beats alone (beats), "
                              "the product's retiming (snap)")
-    parser.add_argument("--split", choices=("dev", "test", "holdout", "all"), default="all",
+    parser.add_argument("--split", choices=(*SPLITS, "all"), default="all",
                         help="the beat benchmark's split to dance (beat_benchmark.SPLIT)")
     args = parser.parse_args()
     assert SR == SONG_SAMPLE_RATE, "the benchmark cache must hold songs at the project's song sample rate"
