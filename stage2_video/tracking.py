@@ -9,12 +9,14 @@ between frames. The tracker here keeps one target:
 * **Following** (:class:`PersonTracker`): the estimator runs on a square crop around the target's
   predicted box, so people outside the crop cannot be picked up at all.
 * **Jump detection**: a pose whose neck moved more than ``jump_distance`` torso lengths from the prediction,
-  or whose torso size changed by more than ``jump_scale`` times, is another person (or a wrong fit). It is
-  rejected, a slower single-image search is run on the same crop, and when that fails too the frame is
+  or whose torso size differs by more than ``jump_scale`` times from the target's (the median of its last
+  :data:`SIZE_HISTORY` poses', so a few wrong fits running cannot grow it), is another person (or a wrong fit).
+  It is rejected, a slower single-image search is run on the same crop, and when that fails too the frame is
   marked missing.
 * **Recovery**: after ``reacquire_after`` consecutive missing frames the whole frame is searched again and,
   among the people of similar torso size, the one closest to where the target was last seen is taken; the
-  allowed distance grows with the time the target has been unseen.
+  allowed distance grows with the time the target has been unseen, around where it was last seen moved on at
+  its last speed for ``reacquire_after`` frames at most.
 
 Limits: two people overlapping in the image can still be confused (a crop then holds both); a person who
 leaves the frame and comes back elsewhere is re-acquired only as "closest to the last position", and one
@@ -25,6 +27,7 @@ whole-frame search.
 
 from __future__ import annotations
 
+from collections import deque
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -34,6 +37,8 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import JOINT_INDEX, NECK, ROOT
 
 _LSHOULDER, _RSHOULDER = JOINT_INDEX["LShoulder"], JOINT_INDEX["RShoulder"]
+# How many accepted poses' torso sizes give the target's size (their median).
+SIZE_HISTORY = 31
 
 
 @dataclass(frozen=True)
@@ -203,6 +208,10 @@ class PersonTracker:
         self.stats = TrackStats()
         self._target: _Target | None = None
         self._missing_run = 0
+        # The torso sizes of the last accepted poses, whose median is the target's size: BlazePose's hips (hence
+        # torso length) can jump between frames, and wrong fits for a few frames running (a somersault against
+        # the sun) must neither make the target look twice its size nor let a smaller stranger pass as it.
+        self._sizes: deque[float] = deque(maxlen=SIZE_HISTORY)
         if start is not None and torso(np.asarray(start)) is not None and pose_box(np.asarray(start)) is not None:
             self._accept(np.asarray(start))
 
@@ -221,7 +230,9 @@ class PersonTracker:
 
     def _predicted(self) -> tuple[np.ndarray, Box]:
         t = self._target
-        shift = t.velocity * (self._missing_run + 1)
+        # Moved on at its last speed while the crop still looks for it, then held: a lost target's speed (often
+        # a wrong fit's) carried over a second of frames sends the search off the frame.
+        shift = t.velocity * min(self._missing_run + 1, self.config.reacquire_after)
         return t.neck + shift, Box(t.box.cx + shift[0], t.box.cy + shift[1], t.box.side)
 
     def _is_same_person(self, pose: np.ndarray) -> bool:
@@ -284,11 +295,11 @@ class PersonTracker:
             t = self._target
             step = (neck - t.neck) / (self._missing_run + 1)
             velocity = 0.5 * t.velocity + 0.5 * step
-            # Running averages: BlazePose's hips (hence torso length) and limbs (hence box) can jump between
-            # frames, and one odd frame must neither shrink the crop onto a limb nor look like a new person.
-            size = 0.7 * t.size + 0.3 * size
+            # A running average: BlazePose's limbs (hence box) can jump between frames, and one odd frame must not
+            # shrink the crop onto a limb.
             box = Box(box.cx, box.cy, 0.7 * t.box.side + 0.3 * box.side)
         else:
             velocity = np.zeros(2)
-        self._target = _Target(neck, size, box, velocity)
+        self._sizes.append(size)
+        self._target = _Target(neck, float(np.median(self._sizes)), box, velocity)
         self._missing_run = 0

@@ -105,6 +105,19 @@ def test_lost_target_is_waited_for_and_reacquired_not_replaced():
     assert tracker.stats.reacquired == 1 and tracker.stats.missing == 6
 
 
+def test_a_target_lost_after_wrong_fits_is_reacquired_where_it_was_not_replaced_by_a_stranger():
+    """As in a somersault against the sun: BlazePose fits the tumbling body too big for a few frames, loses it,
+    and finds it again where it was lost; meanwhile a bigger stranger walks by below it."""
+    target = [person(200 + 4 * t, 120, 40) for t in range(10)]
+    wrong_fits = {10: person(244, 132, 60), 11: person(248, 146, 72), 12: person(252, 160, 84)}
+    stranger, back = person(330, 250, 90), person(240, 130, 40)
+    scenes = [[p] for p in target] + [[]] * 3 + [[stranger]] * 12 + [[stranger, back]] * 3
+    tracker = PersonTracker(ScriptedEstimator(scenes, tracked=wrong_fits), W, H)
+    poses = run(tracker, len(scenes))
+    assert all(p is not stranger for p in poses)
+    assert all(p is back for p in poses[-3:]) and tracker.stats.reacquired == 1
+
+
 def test_crop_follows_the_target_so_a_bigger_person_outside_it_is_never_taken():
     target = [person(150 + 10 * t, 180, 40) for t in range(8)]
     bigger = person(560, 180, 80)
