@@ -10,10 +10,10 @@ retrieval). Here, for every pose to render:
    points are visible and where they lie around the nose in head lengths: which way the head turns). Each group of
    parts (head and torso, each arm, each leg) takes its own nearest frame, with the bones that face the camera
    (shoulders, hips, face) and the head's turn in every group's cost so no part comes from a frame facing the other
-   way, and frames whose hands lie on the group's parts costing more (an arm too, when its hand lies on the head or
-   torso where the pose's does not: it would carry their pixels away). A choice is kept from frame to frame while
-   it stays nearly as good (no flicker), and frames within ``exclude`` of the frame being learnt are never returned
-   (the network must learn to repair a warp, not to copy its input).
+   way, and frames whose hands lie on the group's parts costing more (an arm too, when its hand lies on the head,
+   torso or a leg where the pose's does not: it would carry their pixels away). A choice is kept from frame to frame
+   while it stays nearly as good (no flicker), and frames within ``exclude`` of the frame being learnt are never
+   returned (the network must learn to repair a warp, not to copy its input).
 2. **Parts** (:func:`part_labels`): the source frame's person mask (:mod:`stage2_video.masks`) is split into head,
    torso, upper arms, forearms, hands, thighs, shins and feet by the nearest drawn bone (a hand belongs to
    its arm even where it rests on the torso or a thigh); torso pixels hidden by an arm are filled in from around
@@ -304,13 +304,14 @@ def occlusion_costs(bank: dict[str, dict[str, np.ndarray]], query: np.ndarray) -
     """Per group, ``[N]`` retrieval cost from the bank's :func:`hand_overlaps` for one ``[25, 3]`` query pose.
 
     A bank frame whose hand lies on a group's parts would leave a hole where it is cut out of them; a frame whose
-    hand lies on the head or torso where the query's does not would carry their pixels away with the arm."""
+    hand lies on the head, torso or a leg where the query's does not would carry their pixels away with the arm (a
+    face beside a raised glove; a wedge of trousers swinging with a hand taken from a hip)."""
     query_overlaps = hand_overlaps(np.asarray(query)[None])
     costs = {group: np.zeros_like(bank["right arm"]["core"]) for group in GROUPS}
     for arm, on in bank.items():
         for group, overlap in on.items():
             costs[group] += OCCLUSION_COST * overlap
-        costs[arm] += OCCLUSION_COST * np.maximum(on["core"] - query_overlaps[arm]["core"][0], 0.0)
+            costs[arm] += OCCLUSION_COST * np.maximum(overlap - query_overlaps[arm][group][0], 0.0)
     return costs
 
 

@@ -308,6 +308,19 @@ def test_an_arm_clear_of_the_face_is_not_taken_from_a_frame_whose_hand_lies_on_t
     assert bank.retrieve(query)["right arm"] == 0
 
 
+def test_an_arm_clear_of_the_legs_is_not_taken_from_a_frame_whose_hand_rests_on_a_thigh():
+    query = standing_pose()
+    query[J["RWrist"], :2] = (50, 70)  # the hand hanging beside the thigh, clear of it
+    on_thigh, clear = query.copy(), query.copy()
+    on_thigh[J["RWrist"], :2] = (55, 72)  # nearer the query's forearm than the other, but the hand on the thigh
+    clear[J["RWrist"], :2] = (44, 66)
+    bank = _bank(np.stack([on_thigh, clear]))
+    # Cut from the first frame, the hand would carry a wedge of the thigh with it wherever the query's hand goes.
+    assert bank.retrieve(query)["right arm"] == 1
+    query[J["RWrist"], :2] = (55, 72)  # a hand on the thigh is still taken from a frame that shows one
+    assert bank.retrieve(query)["right arm"] == 0
+
+
 @pytest.mark.parametrize("facing_away", [False, True])
 def test_retrieval_keeps_left_and_right(facing_away):
     front = standing_pose()
