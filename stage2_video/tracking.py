@@ -21,8 +21,8 @@ between frames. The tracker here keeps one target:
 Limits: two people overlapping in the image can still be confused (a crop then holds both); a person who
 leaves the frame and comes back elsewhere is re-acquired only as "closest to the last position", and one
 who comes back much nearer or farther from the camera (torso size changed by more than ``jump_scale``) is
-not re-acquired at all; people much smaller than a tenth of the frame height may be missed by the
-whole-frame search.
+not re-acquired at all; a person whose size doubles within about half :data:`SIZE_HISTORY` frames (a fast
+zoom) is lost; people much smaller than a tenth of the frame height may be missed by the whole-frame search.
 """
 
 from __future__ import annotations
@@ -37,8 +37,8 @@ from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import JOINT_INDEX, NECK, ROOT
 
 _LSHOULDER, _RSHOULDER = JOINT_INDEX["LShoulder"], JOINT_INDEX["RShoulder"]
-# How many accepted poses' torso sizes give the target's size (their median).
-SIZE_HISTORY = 31
+# Accepted poses whose median torso size is the target's: outlasts 10 wrong fits running, follows a real change late.
+SIZE_HISTORY = 21
 
 
 @dataclass(frozen=True)
@@ -148,7 +148,8 @@ class TrackerConfig:
     Attributes:
         crop_margin: side of the tracking crop as a multiple of the target's box side.
         jump_distance: largest neck displacement from the prediction, in torso lengths, for the same person.
-        jump_scale: largest change factor of torso size (vs its running average) for the same person.
+        jump_scale: largest change factor of torso size (vs the median of the last :data:`SIZE_HISTORY` accepted
+            poses') for the same person.
         lost_drift: extra neck displacement allowed per missing frame, in torso lengths.
         reacquire_after: consecutive missing frames before the whole frame is searched again.
         max_people: most people looked for by a whole-frame search.
@@ -208,9 +209,7 @@ class PersonTracker:
         self.stats = TrackStats()
         self._target: _Target | None = None
         self._missing_run = 0
-        # The torso sizes of the last accepted poses, whose median is the target's size: BlazePose's hips (hence
-        # torso length) can jump between frames, and wrong fits for a few frames running (a somersault against
-        # the sun) must neither make the target look twice its size nor let a smaller stranger pass as it.
+        # A median, not an average: wrong fits running (a somersault against the sun) must not grow the target.
         self._sizes: deque[float] = deque(maxlen=SIZE_HISTORY)
         if start is not None and torso(np.asarray(start)) is not None and pose_box(np.asarray(start)) is not None:
             self._accept(np.asarray(start))
@@ -230,8 +229,7 @@ class PersonTracker:
 
     def _predicted(self) -> tuple[np.ndarray, Box]:
         t = self._target
-        # Moved on at its last speed while the crop still looks for it, then held: a lost target's speed (often
-        # a wrong fit's) carried over a second of frames sends the search off the frame.
+        # Held after the crop's frames: a lost target's last speed (often a wrong fit's) sends the search off the frame.
         shift = t.velocity * min(self._missing_run + 1, self.config.reacquire_after)
         return t.neck + shift, Box(t.box.cx + shift[0], t.box.cy + shift[1], t.box.side)
 
@@ -300,6 +298,7 @@ class PersonTracker:
             box = Box(box.cx, box.cy, 0.7 * t.box.side + 0.3 * box.side)
         else:
             velocity = np.zeros(2)
+            self._sizes.clear()  # found again by a whole-frame search: it starts afresh, as its speed does
         self._sizes.append(size)
         self._target = _Target(neck, float(np.median(self._sizes)), box, velocity)
         self._missing_run = 0
