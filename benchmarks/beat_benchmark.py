@@ -436,8 +436,9 @@ def midi_grid(path: Path, grid: tuple[int, int] | None = None,
 
 
 def tempo_kinds(beats: np.ndarray) -> set[str]:
-    """{"fast"}, {"slow"} or no kind from the median spacing of beat times in seconds (see ``FAST_BPM``)."""
-    bpm = 60.0 / float(np.median(np.diff(beats)))
+    """{"fast"}, {"slow"} or no kind from the median spacing of beat times in seconds (see ``FAST_BPM``), in BPM
+    to 0.01: the spacing of a grid of exactly 150 BPM, in floating point, can give 149.99999999."""
+    bpm = round(60.0 / float(np.median(np.diff(beats))), 2)
     return {"fast"} if bpm >= FAST_BPM else {"slow"} if bpm <= SLOW_BPM else set()
 
 

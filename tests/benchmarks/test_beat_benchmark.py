@@ -116,6 +116,8 @@ def test_tempo_kinds():
     assert bb.tempo_kinds(np.arange(0, 10, 60 / 160)) == {"fast"}
     assert bb.tempo_kinds(np.arange(0, 10, 60 / 80)) == {"slow"}
     assert bb.tempo_kinds(np.arange(0, 10, 0.5)) == set()
+    # A chart at exactly 150 BPM, its beats summed in floating point: 149.99999999999787 before rounding.
+    assert bb.tempo_kinds(np.cumsum(np.full(300, 0.4)) + 12.345) == {"fast"}
 
 
 def test_mma_song_plays_the_groove_for_about_a_minute():
