@@ -150,7 +150,8 @@ class TrackerConfig:
         jump_distance: largest neck displacement from the prediction, in torso lengths, for the same person.
         jump_scale: largest change factor of torso size (vs the median of the last :data:`SIZE_HISTORY` accepted
             poses') for the same person.
-        lost_drift: extra neck displacement allowed per missing frame, in torso lengths.
+        lost_drift: extra neck displacement allowed per missing frame, in torso lengths (0.1: 3 a second at 30
+            fps, a sprint; at 0.2 a bystander half the size came within reach during a 10-frame occlusion).
         reacquire_after: consecutive missing frames before the whole frame is searched again.
         max_people: most people looked for by a whole-frame search.
         min_lead: when set, the target's :func:`target_score` must exceed every other person's by this factor
@@ -161,7 +162,7 @@ class TrackerConfig:
     crop_margin: float = 1.6
     jump_distance: float = 1.0
     jump_scale: float = 2.0
-    lost_drift: float = 0.2
+    lost_drift: float = 0.1
     reacquire_after: int = 5
     max_people: int = 4
     min_lead: float | None = None

@@ -118,6 +118,16 @@ def test_a_target_lost_after_wrong_fits_is_reacquired_where_it_was_lost_not_repl
     assert all(p is back for p in poses[-3:]) and tracker.stats.reacquired == 1
 
 
+def test_a_smaller_bystander_is_not_taken_while_the_target_is_hidden_for_a_third_of_a_second():
+    target = [person(400 - 10 * t, 120, 70) for t in range(26)]
+    bystander = person(260, 280, 40)  # in view throughout, 160 px below where the target is looked for
+    scenes = [[target[t], bystander] for t in range(10)] + [[bystander]] * 10 + [
+        [bystander, target[t]] for t in range(20, 26)]
+    poses = run(PersonTracker(ScriptedEstimator(scenes), W, H), 26)
+    assert all(p is None for p in poses[10:20])
+    assert all(p is target[t] for t, p in enumerate(poses) if t < 10 or t >= 20)
+
+
 def test_a_person_growing_steadily_towards_the_camera_is_followed_throughout():
     growing = [person(320, 100, 20 * 1.03 ** t) for t in range(60)]  # 3 % a frame: 5.9 times in 2 s at 30 fps
     tracker = PersonTracker(ScriptedEstimator([[p] for p in growing]), W, H)
