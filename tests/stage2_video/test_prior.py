@@ -295,29 +295,22 @@ def test_retrieval_prefers_frames_whose_hands_cover_no_part():
     assert bank.retrieve(query)["core"] == 1
 
 
-def test_an_arm_clear_of_the_face_is_not_taken_from_a_frame_whose_hand_lies_on_the_face():
+@pytest.mark.parametrize("elbow, query_wrist, on_part, clear, query_on_part", [
+    # The hand raised beside the head: cut from a frame with the hand on the face, the arm carries the face along.
+    ((48, 26), (54, 12), (60, 20), (42, 12), (61, 21)),
+    # The hand hanging beside the thigh: cut from a frame with the hand on it, the hand carries a wedge of trousers.
+    ((48, 50), (50, 70), (55, 72), (44, 66), (55, 72)),
+], ids=["face", "thigh"])
+def test_an_arm_clear_of_a_part_is_not_taken_from_a_frame_whose_hand_lies_on_it(elbow, query_wrist, on_part, clear,
+                                                                                 query_on_part):
     query = standing_pose()
-    query[J["RElbow"], :2], query[J["RWrist"], :2] = (48, 26), (54, 12)  # the hand raised beside the head
-    on_face, clear = query.copy(), query.copy()
-    on_face[J["RWrist"], :2] = (60, 20)  # nearer the query's forearm than the other, but the hand on the face
-    clear[J["RWrist"], :2] = (42, 12)
-    bank = _bank(np.stack([on_face, clear]))
-    # Cut from the first frame, the arm would carry the face's pixels with it onto the query's raised arm.
+    query[J["RElbow"], :2], query[J["RWrist"], :2] = elbow, query_wrist
+    lying, away = query.copy(), query.copy()
+    lying[J["RWrist"], :2] = on_part  # nearer the query's forearm than the other, but the hand on the part
+    away[J["RWrist"], :2] = clear
+    bank = _bank(np.stack([lying, away]))
     assert bank.retrieve(query)["right arm"] == 1
-    query[J["RWrist"], :2] = (61, 21)  # a hand on the face is still taken from a frame that shows one
-    assert bank.retrieve(query)["right arm"] == 0
-
-
-def test_an_arm_clear_of_the_legs_is_not_taken_from_a_frame_whose_hand_rests_on_a_thigh():
-    query = standing_pose()
-    query[J["RWrist"], :2] = (50, 70)  # the hand hanging beside the thigh, clear of it
-    on_thigh, clear = query.copy(), query.copy()
-    on_thigh[J["RWrist"], :2] = (55, 72)  # nearer the query's forearm than the other, but the hand on the thigh
-    clear[J["RWrist"], :2] = (44, 66)
-    bank = _bank(np.stack([on_thigh, clear]))
-    # Cut from the first frame, the hand would carry a wedge of the thigh with it wherever the query's hand goes.
-    assert bank.retrieve(query)["right arm"] == 1
-    query[J["RWrist"], :2] = (55, 72)  # a hand on the thigh is still taken from a frame that shows one
+    query[J["RWrist"], :2] = query_on_part  # a hand on the part is still taken from a frame that shows one
     assert bank.retrieve(query)["right arm"] == 0
 
 
