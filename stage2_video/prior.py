@@ -16,9 +16,11 @@ retrieval). Here, for every pose to render:
    returned (the network must learn to repair a warp, not to copy its input).
 2. **Parts** (:func:`part_labels`): the source frame's person mask (:mod:`stage2_video.masks`) is split into head,
    torso, upper arms, forearms, hands, thighs, shins and feet by the nearest drawn bone (a hand belongs to
-   its arm even where it rests on the torso or a thigh); torso pixels hidden by an arm are filled in from around
-   them. Pixels outside the hands coloured like the bank's hands and unlike their own part (a glove the pose put
-   elsewhere) take the colour of the part around them (:func:`clean_strays`).
+   its arm even where it rests on the torso or a thigh); a piece of a part's region apart from the pixels its
+   bone is drawn on (trousers beside a hand that rests on a thigh) goes to the next nearest part, so it does not
+   swing away with the part; torso pixels hidden by an arm are filled in from around them. Pixels outside the
+   hands coloured like the bank's hands and unlike their own part (a glove the pose put elsewhere) take the colour
+   of the part around them (:func:`clean_strays`).
 3. **Warping** (:func:`warp_parts`): each pose's size is measured by its longest bones against the bank's
    (:func:`body_scale`: foreshortening only shortens a bone), and the ratio of the two sizes scales every part.
    The torso is stretched along its spine (neck to mid-hip) onto the target's and scaled by that ratio across it;
@@ -368,6 +370,7 @@ def part_labels(mask: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
     local[:, :2] -= (x0, y0)
     shape = (y1 - y0, x1 - x0)
     distances = np.full((len(PARTS), *shape), np.inf, np.float32)
+    drawn = np.zeros((len(PARTS), *shape), bool)
     corners = [j for j in TORSO_CORNERS if local[j, 2] >= MIN_CONFIDENCE]
     for i, part in enumerate(PARTS):
         lines = part_lines(part, local, torso)
@@ -376,10 +379,30 @@ def part_labels(mask: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
             continue
         d = cv2.distanceTransform(_segment_mask(shape, lines, polygon), cv2.DIST_L2, 3)
         distances[i] = np.where(d <= part.reach * torso, d + part.bias * torso, np.inf)
-    nearest = distances.argmin(0).astype(np.uint8)
+        drawn[i] = d == 0
+    person = person[y0:y1, x0:x1]
+    nearest = distances.argmin(0)
+    for i in range(len(PARTS)):
+        cut_off = _detached(person & (nearest == i), drawn[i])
+        if cut_off.any():
+            distances[i][cut_off] = np.inf
+            nearest[cut_off] = distances[:, cut_off].argmin(0)
     reached = np.isfinite(distances.min(0))
-    labels[y0:y1, x0:x1] = np.where(person[y0:y1, x0:x1] & reached, nearest, NO_PART)
+    labels[y0:y1, x0:x1] = np.where(person & reached, nearest, NO_PART)
     return labels
+
+
+def _detached(region: np.ndarray, on_lines: np.ndarray) -> np.ndarray:
+    """``[H, W]`` bool: the pieces of a part's ``region`` that hold none of its own drawn pixels (``on_lines``),
+    where some piece does hold one: pixels beside another part that lies across it (trousers beside a hand resting
+    on a thigh), which would swing away from the body when the part moves."""
+    count, pieces = cv2.connectedComponents(region.astype(np.uint8), connectivity=8)
+    if count <= 2:
+        return np.zeros_like(region)
+    anchored = np.unique(pieces[region & on_lines])
+    if not len(anchored):
+        return np.zeros_like(region)
+    return region & ~np.isin(pieces, anchored)
 
 
 def colour_index(image: np.ndarray) -> np.ndarray:
