@@ -12,6 +12,7 @@ Beat times are seconds from the start of the song; on pose frames a beat is the 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -155,19 +156,86 @@ def _unswing(beats: np.ndarray, full: np.ndarray) -> np.ndarray:
     return beats
 
 
+def _local_score(onset: np.ndarray, period: float) -> np.ndarray:
+    """``[T]`` float64: the onset envelope over its standard deviation, smoothed by a Gaussian a ``period``-frame
+    beat wide (librosa's, term by term in its order: its first frame never counts)."""
+    x = onset / (onset.std(ddof=1) + np.finfo(onset.dtype).tiny)
+    window = np.exp(-0.5 * (np.arange(-period, period + 1) * 32.0 / period) ** 2)
+    half, n = len(window) // 2, len(x)
+    score = np.zeros(n)
+    i = np.arange(n)
+    for k, w in enumerate(window):
+        # score[i] += w * x[i + half - k] for 1 <= i + half - k < n
+        lo, hi = max(0, k - half + 1), min(n, n + k - half)
+        score[lo:hi] += w * x[i[lo:hi] + half - k]
+    return score
+
+
+def dp_beats(onset: np.ndarray, bpm: float, frame_rate: float, tightness: float) -> np.ndarray:
+    """Beat frames (int64, increasing) of a ``[T]`` onset envelope at a fixed tempo (``bpm``; ``frame_rate`` frames
+    per second): Ellis (2007)'s dynamic programme as ``librosa.beat.beat_track(onset_envelope=..., bpm=...,
+    tightness=...)`` runs it, the same frames, without compiling librosa's numba kernels (seconds per process).
+
+    Each frame's best predecessor lies half a beat to two beats back, scored by its cumulative score less
+    ``tightness`` times the squared log ratio of the gap to the beat; the path ends at the last local maximum of
+    the cumulative score above half their median, and frames whose smoothed onset is under half the beats' RMS
+    are cut from both ends.
+    """
+    onset = np.asarray(onset)
+    if not onset.any():
+        return np.zeros(0, np.int64)
+    period = float(np.round(frame_rate * 60.0 / bpm))
+    local = _local_score(onset, period)
+    n = len(local)
+    nearest = int(np.round(period / 2))
+    gaps = np.arange(nearest, int(2 * period) + 1)
+    # math.log, as the compiled loop calls it: numpy's vectorised log may differ in the last bit.
+    penalty = np.array([float(tightness) * (math.log(g) - math.log(period)) ** 2 for g in gaps])
+    cumulative = np.empty(n)
+    backlink = np.full(n, -1, np.int64)
+    # A frame's predecessors are at least ``nearest`` frames back, so a block of that many frames depends only on
+    # frames before it.
+    for start in range(0, n, max(1, nearest)):
+        frames = np.arange(start, min(n, start + max(1, nearest)))
+        before = frames[:, None] - gaps[None, :]
+        scores = np.where(before >= 0, cumulative[np.maximum(before, 0)] - penalty, -np.inf)
+        best = scores.argmax(1)
+        found = before[np.arange(len(frames)), best] >= 0
+        cumulative[frames] = local[frames] + np.where(found, scores[np.arange(len(frames)), best], 0.0)
+        backlink[frames] = np.where(found, before[np.arange(len(frames)), best], -1)
+    # Before the first frame with a real onset no beat links back.
+    first = int(np.argmax(local >= 0.01 * local.max()))
+    backlink[:first] = -1
+    peaks = np.zeros(n, bool)
+    peaks[1:-1] = (cumulative[1:-1] > cumulative[:-2]) & (cumulative[1:-1] >= cumulative[2:])
+    peaks[-1] = cumulative[-1] > cumulative[-2]
+    last = n - 1
+    if peaks.any():
+        high = np.flatnonzero(peaks & (cumulative >= 0.5 * np.median(cumulative[peaks])))
+        last = int(high[-1]) if len(high) else n - 1
+    beats = np.zeros(n, bool)
+    while last >= 0:
+        beats[last] = True
+        last = backlink[last]
+    smooth = np.convolve(local[beats], np.hanning(5))[2:n + 2]
+    weak = local <= 0.5 * np.mean(smooth ** 2) ** 0.5
+    head = int(np.argmin(weak)) if not weak.all() else n
+    tail = n - int(np.argmin(weak[::-1])) if not weak.all() else n
+    beats[:head] = False
+    beats[tail:] = False
+    return np.flatnonzero(beats)
+
+
 def track_beats(samples: np.ndarray, sr: int) -> tuple[float, np.ndarray]:
     """``(tempo in BPM, beat times in seconds)`` of a mono ``[N]`` song at ``sr`` Hz in one pass (see
     :func:`beat_times`)."""
-    import librosa
-
     full, low, phase = _envelopes(samples, sr)
     tracks = []
     for bpm in _tempo_candidates(full, low):
-        frames = librosa.beat.beat_track(onset_envelope=phase, sr=_BEAT_SR, hop_length=_BEAT_HOP, bpm=bpm,
-                                         tightness=_TIGHTNESS, units="frames")[1]
+        frames = dp_beats(phase, bpm, _BEAT_SR / _BEAT_HOP, _TIGHTNESS)
         tracks.append((float(phase[frames].mean()) if len(frames) else -np.inf, bpm, frames))
     _, bpm, frames = max(tracks, key=lambda track: track[0])
-    beats = _unswing(np.asarray(librosa.frames_to_time(frames, sr=_BEAT_SR, hop_length=_BEAT_HOP), np.float64), full)
+    beats = _unswing(frames * _BEAT_HOP / _BEAT_SR, full)
     beats = beats - _ENVELOPE_DELAY
     return bpm, beats[beats >= 0]
 

@@ -95,3 +95,22 @@ def test_the_mean_tempogram_is_librosas_tempogram_averaged_over_frames():
     expected = librosa.feature.tempogram(onset_envelope=onset, sr=beats._BEAT_SR, hop_length=beats._BEAT_HOP,
                                          win_length=win).mean(axis=1)
     np.testing.assert_allclose(beats._mean_tempogram(onset), expected, atol=1e-12)
+
+
+@pytest.mark.parametrize("bpm, tightness, dtype", [(96.0, 400.0, np.float32), (143.5, 100.0, np.float64)])
+def test_the_beat_dynamic_programme_gives_librosas_frames(bpm, tightness, dtype):
+    # The tracker runs it itself (librosa's compiles numba kernels in every process, seconds before the first
+    # song): a click every beat with a drifting phase and noise, silent at both ends, so every step of it counts.
+    import librosa
+
+    rng = np.random.default_rng(1)
+    rate = beats._BEAT_SR / beats._BEAT_HOP
+    onset = rng.random(3000) * 0.3
+    clicks = np.cumsum(rng.normal(60 * rate / bpm, 1.5, 60)).astype(int) + 200
+    onset[clicks[clicks < 2700]] += 2.0
+    onset[:150] = onset[2800:] = 0.0
+    onset = onset.astype(dtype)
+    expected = librosa.beat.beat_track(onset_envelope=onset, sr=beats._BEAT_SR, hop_length=beats._BEAT_HOP, bpm=bpm,
+                                       tightness=tightness, units="frames")[1]
+    found = beats.dp_beats(onset, bpm, rate, tightness)
+    assert len(found) > 40 and np.array_equal(found, expected)
