@@ -11,7 +11,6 @@ from pathlib import Path
 import torch
 import torch.nn.functional as F
 from torch import nn
-from torchvision.models.vgg import cfgs, make_layers
 
 from dancesynth.core.errors import DancesynthError
 
@@ -49,6 +48,9 @@ class VGGLoss(nn.Module):
 
     def __init__(self, state_dict: dict[str, torch.Tensor]) -> None:
         super().__init__()
+        # Imported here: torchvision takes a second and a half to import, and the loss is off unless weights are given.
+        from torchvision.models.vgg import cfgs, make_layers
+
         # vgg19's `features` (config "E") without building its 120M-parameter classifier.
         features = make_layers(cfgs["E"])
         # Accept a full vgg19 state dict or just its `features` part.
