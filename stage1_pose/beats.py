@@ -195,24 +195,23 @@ def dp_beats(onset: np.ndarray, bpm: float, frame_rate: float, tightness: float)
     backlink = np.full(n, -1, np.int64)
     # A frame's predecessors are at least ``nearest`` frames back, so a block of that many frames depends only on
     # frames before it.
-    for start in range(0, n, max(1, nearest)):
-        frames = np.arange(start, min(n, start + max(1, nearest)))
+    block = max(1, nearest)
+    for start in range(0, n, block):
+        frames = np.arange(start, min(n, start + block))
         before = frames[:, None] - gaps[None, :]
         scores = np.where(before >= 0, cumulative[np.maximum(before, 0)] - penalty, -np.inf)
-        best = scores.argmax(1)
-        found = before[np.arange(len(frames)), best] >= 0
-        cumulative[frames] = local[frames] + np.where(found, scores[np.arange(len(frames)), best], 0.0)
-        backlink[frames] = np.where(found, before[np.arange(len(frames)), best], -1)
+        rows, best = np.arange(len(frames)), scores.argmax(1)  # argmax: the nearest of equal predecessors
+        found = before[rows, best] >= 0
+        cumulative[frames] = local[frames] + np.where(found, scores[rows, best], 0.0)
+        backlink[frames] = np.where(found, before[rows, best], -1)
     # Before the first frame with a real onset no beat links back.
     first = int(np.argmax(local >= 0.01 * local.max()))
     backlink[:first] = -1
     peaks = np.zeros(n, bool)
     peaks[1:-1] = (cumulative[1:-1] > cumulative[:-2]) & (cumulative[1:-1] >= cumulative[2:])
     peaks[-1] = cumulative[-1] > cumulative[-2]
-    last = n - 1
-    if peaks.any():
-        high = np.flatnonzero(peaks & (cumulative >= 0.5 * np.median(cumulative[peaks])))
-        last = int(high[-1]) if len(high) else n - 1
+    high = np.flatnonzero(peaks & (cumulative >= 0.5 * np.median(cumulative[peaks]))) if peaks.any() else []
+    last = int(high[-1]) if len(high) else n - 1
     beats = np.zeros(n, bool)
     while last >= 0:
         beats[last] = True
