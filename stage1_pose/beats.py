@@ -163,11 +163,10 @@ def _local_score(onset: np.ndarray, period: float) -> np.ndarray:
     window = np.exp(-0.5 * (np.arange(-period, period + 1) * 32.0 / period) ** 2)
     half, n = len(window) // 2, len(x)
     score = np.zeros(n)
-    i = np.arange(n)
     for k, w in enumerate(window):
         # score[i] += w * x[i + half - k] for 1 <= i + half - k < n
         lo, hi = max(0, k - half + 1), min(n, n + k - half)
-        score[lo:hi] += w * x[i[lo:hi] + half - k]
+        score[lo:hi] += w * x[lo + half - k:hi + half - k]
     return score
 
 
@@ -217,11 +216,9 @@ def dp_beats(onset: np.ndarray, bpm: float, frame_rate: float, tightness: float)
         beats[last] = True
         last = backlink[last]
     smooth = np.convolve(local[beats], np.hanning(5))[2:n + 2]
-    weak = local <= 0.5 * np.mean(smooth ** 2) ** 0.5
-    head = int(np.argmin(weak)) if not weak.all() else n
-    tail = n - int(np.argmin(weak[::-1])) if not weak.all() else n
-    beats[:head] = False
-    beats[tail:] = False
+    strong = np.flatnonzero(local > 0.5 * np.mean(smooth ** 2) ** 0.5)
+    beats[:strong[0] if len(strong) else n] = False
+    beats[strong[-1] + 1 if len(strong) else n:] = False
     return np.flatnonzero(beats)
 
 
