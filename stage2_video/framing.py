@@ -10,6 +10,7 @@ pixel for pixel. A video is framed by a :data:`VideoFraming`: one fixed box arou
 
 from __future__ import annotations
 
+import threading
 from collections.abc import Iterator
 from dataclasses import asdict, dataclass
 
@@ -225,6 +226,29 @@ def label_maps(seq: PoseSequence, framing: Framing) -> Iterator[np.ndarray]:
         yield label_map(keypoints, framing)
 
 
+# The last few plates' crops, keyed by framing and the plate's identity (each plate is kept, so its id is its own).
+_PLATE_CROPS: dict[tuple[Framing, int], tuple[np.ndarray, np.ndarray]] = {}
+_PLATE_CROPS_KEPT = 4
+_PLATE_CROPS_LOCK = threading.Lock()
+
+
+def plate_crop(framing: Framing, plate: np.ndarray) -> np.ndarray:
+    """``framing.image(plate)`` of an ``[H, W, 3]`` uint8 background plate, read-only, remembered for the last few
+    framings: a video framed by one fixed box crops its plate once, not once per frame. Plates are never changed
+    in place once loaded."""
+    key = (framing, id(plate))
+    with _PLATE_CROPS_LOCK:  # the renderer warps in a thread of its own
+        if key in _PLATE_CROPS:
+            return _PLATE_CROPS[key][1]
+    crop = framing.image(plate)
+    crop.flags.writeable = False
+    with _PLATE_CROPS_LOCK:
+        while len(_PLATE_CROPS) >= _PLATE_CROPS_KEPT:
+            del _PLATE_CROPS[next(iter(_PLATE_CROPS))]
+        _PLATE_CROPS[key] = (plate, crop)
+    return crop
+
+
 def condition(keypoints: np.ndarray, framing: Framing, plate: np.ndarray | None = None,
               prior: np.ndarray | None = None) -> np.ndarray:
     """What the model draws one frame from: ``[out_height, out_width, 3]`` uint8 label map of the ``[25, 3]``
@@ -232,7 +256,7 @@ def condition(keypoints: np.ndarray, framing: Framing, plate: np.ndarray | None 
     given, and by the ``[out_height, out_width, 4]`` warped prior when given (``[..., 10]``)."""
     parts = [label_map(keypoints, framing)]
     if plate is not None:
-        parts.append(framing.image(plate))
+        parts.append(plate_crop(framing, plate))
     if prior is not None:
         parts.append(prior)
     return parts[0] if len(parts) == 1 else np.concatenate(parts, axis=2)

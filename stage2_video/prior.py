@@ -272,10 +272,17 @@ def place_costs(places: np.ndarray, query: np.ndarray) -> np.ndarray:
 
 
 def _distance_to_segment(p: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``[N, 2]`` points, ``[N, 2]`` segment ends -> ``[N]`` distances."""
+    """``[..., 2]`` points, ``[..., 2]`` segment ends (broadcast) -> ``[...]`` distances."""
     ab = b - a
     t = np.clip(((p - a) * ab).sum(-1) / np.maximum((ab ** 2).sum(-1), 1e-9), 0.0, 1.0)
-    return np.linalg.norm(p - (a + t[:, None] * ab), axis=-1)
+    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
+
+
+# Every occluded bone's ends, in the order of OCCLUDED_BONES, and each group's share of them.
+_OCCLUDED_ENDS = np.array([bone for bones in OCCLUDED_BONES.values() for bone in bones])
+_OCCLUDED_SPLITS = np.cumsum([len(bones) for bones in OCCLUDED_BONES.values()])[:-1]
+_OCCLUDED_REACH = np.repeat([OCCLUSION_REACH[g] for g in OCCLUDED_BONES],
+                            [len(bones) for bones in OCCLUDED_BONES.values()])
 
 
 def hand_overlaps(keypoints: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
@@ -283,22 +290,20 @@ def hand_overlaps(keypoints: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
     ``{arm group: {group: [N]}}``, 0 (clear) to 3 per bone of the group (all three points on it)."""
     kp = np.asarray(keypoints, np.float64)
     torso = torso_lengths(kp)
-    scale = np.nan_to_num(torso, nan=1.0)
+    scale = np.nan_to_num(torso, nan=1.0)[:, None, None]
+    ends = kp[:, _OCCLUDED_ENDS]  # [N, bones, 2 ends, 3]
+    bones_seen = (ends[..., 2] >= MIN_CONFIDENCE).all(-1) & np.isfinite(torso)[:, None]  # [N, bones]
     overlaps: dict[str, dict[str, np.ndarray]] = {}
     for arm, (elbow, wrist) in (("right arm", _R_FOREARM), ("left arm", _L_FOREARM)):
         seen = (kp[:, elbow, 2] >= MIN_CONFIDENCE) & (kp[:, wrist, 2] >= MIN_CONFIDENCE)
         forearm = kp[:, wrist, :2] - kp[:, elbow, :2]
         tip = kp[:, wrist, :2] + forearm / np.maximum(np.linalg.norm(forearm, axis=-1), 1e-6)[:, None] * (
             PARTS[-1].extend * np.nan_to_num(torso)[:, None])
-        overlaps[arm] = {}
-        for group, bones in OCCLUDED_BONES.items():
-            total = np.zeros(len(kp))
-            for a, b in bones:
-                bone = (kp[:, a, 2] >= MIN_CONFIDENCE) & (kp[:, b, 2] >= MIN_CONFIDENCE) & np.isfinite(torso) & seen
-                for point in (kp[:, elbow, :2], kp[:, wrist, :2], tip):
-                    near = _distance_to_segment(point, kp[:, a, :2], kp[:, b, :2]) / scale
-                    total += np.where(bone, np.clip(1.0 - near / OCCLUSION_REACH[group], 0.0, 1.0), 0.0)
-            overlaps[arm][group] = total
+        points = np.stack([kp[:, elbow, :2], kp[:, wrist, :2], tip], 1)[:, None]  # [N, 1, 3 points, 2]
+        near = _distance_to_segment(points, ends[:, :, None, 0, :2], ends[:, :, None, 1, :2]) / scale
+        on = np.clip(1.0 - near / _OCCLUDED_REACH[:, None], 0.0, 1.0).sum(-1)  # [N, bones]
+        on = np.where(bones_seen & seen[:, None], on, 0.0)
+        overlaps[arm] = {group: part.sum(1) for group, part in zip(OCCLUDED_BONES, np.split(on, _OCCLUDED_SPLITS, 1))}
     return overlaps
 
 

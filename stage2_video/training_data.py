@@ -32,7 +32,7 @@ from dancesynth.core.fileio import atomic_path
 from dancesynth.core.media import probe_video, read_frames
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence
-from stage2_video.framing import Framing, VideoFraming, condition, usable_frames
+from stage2_video.framing import Framing, VideoFraming, condition, plate_crop, usable_frames
 from stage2_video.prior import FrameBank, PriorRenderer, bank_keypoints, scaled_framing
 
 POSES_FILE = "poses.npz"
@@ -243,7 +243,7 @@ def prior_images(renderer: PriorRenderer, keypoints: np.ndarray, bank_framing: F
     the same resized to ``model_size`` (width, height). ``frame``: the video frame being learnt (excluded)."""
     scene = np.asarray(keypoints, np.float32)
     pose = np.c_[bank_framing.points(scene[:, :2]), scene[:, 2]]
-    high = renderer(pose, bank_framing.image(plate), frame, scene)
+    high = renderer(pose, plate_crop(bank_framing, plate), frame, scene)
     return high, cv2.resize(high, model_size, interpolation=cv2.INTER_AREA)
 
 

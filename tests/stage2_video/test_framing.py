@@ -121,3 +121,7 @@ def test_the_condition_is_the_label_map_then_the_same_crop_of_the_background():
     np.testing.assert_array_equal(cond[..., :3], label_map(seq.keypoints[0], f))
     np.testing.assert_array_equal(cond[..., 3:], f.image(plate))
     assert condition(seq.keypoints[0], f).shape == (64, 64, 3)  # no plate: the label map alone
+    # The crop is remembered for the framing, but never handed out for another plate of that framing.
+    for seed in range(6):
+        other = np.random.default_rng(seed + 1).integers(0, 255, (360, 640, 3), np.uint8)
+        np.testing.assert_array_equal(condition(seq.keypoints[0], f, other)[..., 3:], f.image(other))
