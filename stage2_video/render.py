@@ -16,6 +16,8 @@ from __future__ import annotations
 
 import contextlib
 import copy
+import hashlib
+import json
 import math
 import os
 import time
@@ -23,6 +25,7 @@ import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -34,6 +37,7 @@ from dancesynth.core.concurrency import read_ahead
 from dancesynth.core.config import config_from_dict
 from dancesynth.core.device import resolve_device, resolve_precision
 from dancesynth.core.errors import DancesynthError
+from dancesynth.core.fileio import atomic_path
 from dancesynth.core.media import VideoWriter
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import BODY25_LIMBS, PoseSequence, resample
@@ -66,6 +70,9 @@ from stage2_video.training_data import (
     to_tensor,
 )
 from stage2_video.winograd import winograd_generator
+
+if TYPE_CHECKING:
+    import openvino
 
 # A residual model's correction counts as the person where it changes a channel by this much ([-1, 1] scale: 13
 # grey levels); the scene shows through fainter changes (noise of the correction over the background).
@@ -105,24 +112,32 @@ class OpenVINOGenerator:
     AMX) and far closer to float32 than Winograd's transforms rounded to bf16 (``benchmarks/bench_precision.py``);
     ``winograd`` overrides that choice. Either way OpenVINO fuses the other convolutions with their instance norm
     and activation and keeps activations in blocked layouts between layers, which PyTorch's eager and
-    TorchScript paths do not.
+    TorchScript paths do not. ``cache``: a run folder to keep the converted network in (:data:`CONVERTED_DIR`), read
+    back instead of converted again when nothing it depends on changed.
     """
 
     def __init__(self, generator: nn.Module, in_channels: int, width: int, height: int,
-                 precision: torch.dtype = torch.float32, winograd: bool | None = None) -> None:
+                 precision: torch.dtype = torch.float32, winograd: bool | None = None,
+                 cache: Path | None = None) -> None:
         import openvino
 
         shape = (1, in_channels, height, width)
-        example = torch.zeros(shape)
-        with torch.no_grad(), warnings.catch_warnings():
-            # The tracer warns about instance norm's shape checks, fixed for a fixed input size.
-            warnings.simplefilter("ignore")
-            # Traced here without autograd or the tracer's re-run check: left to the converter, tracing held
-            # about 400 MB more at its peak for the small preset.
-            if precision == torch.float32 if winograd is None else winograd:
-                generator = winograd_generator(generator, in_channels, width, height)
-            traced = torch.jit.trace(generator, example, check_trace=False)
-            model = openvino.convert_model(traced, example_input=example, input=[shape])
+        use_winograd = precision == torch.float32 if winograd is None else winograd
+        key = _converted_key(generator, shape, use_winograd) if cache is not None else ""
+        model = _read_converted(cache, key) if cache is not None else None
+        if model is None:
+            example = torch.zeros(shape)
+            with torch.no_grad(), warnings.catch_warnings():
+                # The tracer warns about instance norm's shape checks, fixed for a fixed input size.
+                warnings.simplefilter("ignore")
+                # Traced here without autograd or the tracer's re-run check: left to the converter, tracing held
+                # about 400 MB more at its peak for the small preset.
+                if use_winograd:
+                    generator = winograd_generator(generator, in_channels, width, height)
+                traced = torch.jit.trace(generator, example, check_trace=False)
+                model = openvino.convert_model(traced, example_input=example, input=[shape])
+            if cache is not None:
+                _write_converted(cache, key, model)
         compiled = openvino.Core().compile_model(model, "CPU", {
             "INFERENCE_PRECISION_HINT": "bf16" if precision == torch.bfloat16 else "f32", "PERFORMANCE_HINT": "LATENCY",
             "INFERENCE_NUM_THREADS": torch.get_num_threads()})
@@ -134,17 +149,69 @@ class OpenVINOGenerator:
         return torch.from_numpy(self._request.infer([x.numpy()])[0].copy())
 
 
+# The converted network of a run's generator, kept in the run folder: converting takes seconds, reading it back a
+# fraction of one. Its key names the weights, the input shape, the Winograd rewrite, OpenVINO's version and the
+# code that builds the network, so anything that would convert differently converts again.
+CONVERTED_DIR = "openvino"
+_CONVERTED_XML = "generator.xml"
+_CONVERTED_KEY = "key.txt"
+
+
+def _converted_key(generator: nn.Module, shape: tuple[int, ...], winograd: bool) -> str:
+    import inspect
+
+    import openvino
+
+    from stage2_video import winograd as winograd_module
+
+    digest = hashlib.sha256(json.dumps([list(shape), winograd, openvino.__version__]).encode())
+    for module in (inspect.getmodule(type(generator)), winograd_module):
+        digest.update(Path(inspect.getfile(module)).read_bytes())
+    for name, tensor in generator.state_dict().items():
+        digest.update(name.encode())
+        digest.update(tensor.detach().cpu().contiguous().view(torch.uint8).numpy())
+    return digest.hexdigest()
+
+
+def _read_converted(run_dir: Path, key: str) -> openvino.Model | None:
+    """The network converted for ``key`` from ``RUN_DIR/openvino``, or None when it is missing, stale or unreadable."""
+    import openvino
+
+    folder = run_dir / CONVERTED_DIR
+    try:
+        if (folder / _CONVERTED_KEY).read_text() != key:
+            return None
+        return openvino.Core().read_model(folder / _CONVERTED_XML)
+    except (OSError, RuntimeError, UnicodeDecodeError):
+        return None
+
+
+def _write_converted(run_dir: Path, key: str, model: openvino.Model) -> None:
+    """Keep the converted ``model`` in ``RUN_DIR/openvino`` under ``key``; a folder that cannot be written (read-only,
+    full) only costs the next render the conversion."""
+    import openvino
+
+    with contextlib.suppress(DancesynthError):
+        with atomic_path(run_dir / CONVERTED_DIR, folder=True) as tmp:
+            tmp.mkdir()
+            openvino.save_model(model, tmp / _CONVERTED_XML, compress_to_fp16=False)
+            (tmp / _CONVERTED_KEY).write_text(key)
+
+
 def optimize_generator(generator: nn.Module, in_channels: int, width: int, height: int, device: torch.device,
-                       precision: torch.dtype = torch.float32) -> Callable[[torch.Tensor], torch.Tensor]:
+                       precision: torch.dtype = torch.float32,
+                       cache: Path | None = None) -> Callable[[torch.Tensor], torch.Tensor]:
     """An inference-only copy of ``generator`` for ``[1, in_channels, height, width]`` inputs, computing in
     ``precision`` (float32 input and output).
 
     On CPU the network compiled by OpenVINO (:class:`OpenVINOGenerator`); on a GPU a channels-last copy traced
     (under autocast unless ``precision`` is float32) and frozen by TorchScript. In float32 the output equals the
     plain forward up to rounding (``benchmarks/bench_render.py`` measures the difference and the speed-up).
+    ``cache``: the model's run folder, where the CPU's converted network is kept for the next render
+    (:data:`CONVERTED_DIR`).
     """
     if device.type == "cpu":
-        return OpenVINOGenerator(generator, in_channels, width, height, precision)
+        return OpenVINOGenerator(generator, in_channels, width, height, precision, cache=cache)
     wrapped = _ChannelsLast(copy.deepcopy(generator).eval().to(device, memory_format=torch.channels_last))
     if precision != torch.float32:
         wrapped = _Autocast(wrapped, precision)
@@ -279,7 +346,8 @@ def load_appearance_model(run_dir: str | os.PathLike, device: str = "auto", opti
     if config.prior and untrained:
         generator = None
     elif optimize:
-        generator = optimize_generator(generator, generator_channels(config), config.width, config.height, dev, dtype)
+        generator = optimize_generator(generator, generator_channels(config), config.width, config.height, dev, dtype,
+                                       run_dir)
     elif dtype != torch.float32:
         generator = _Autocast(generator, dtype)
     plate = load_plate(run_dir) if config.background else None

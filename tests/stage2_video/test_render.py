@@ -1,4 +1,5 @@
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -11,7 +12,14 @@ from dancesynth.core.media import probe_video
 from dancesynth.core.skeleton import PoseSequence
 from stage2_video.framing import condition
 from stage2_video.prior import PriorRenderer
-from stage2_video.render import OpenVINOGenerator, load_appearance_model, render_frames, render_layers, render_video
+from stage2_video.render import (
+    CONVERTED_DIR,
+    OpenVINOGenerator,
+    load_appearance_model,
+    render_frames,
+    render_layers,
+    render_video,
+)
 from stage2_video.train import TrainOptions, train_video
 from stage2_video.training_data import EXCLUDE_SECONDS, prior_images
 
@@ -50,6 +58,32 @@ def test_optimized_generator_matches_plain_forward(tiny_run):
     for a, b in zip(render_frames(fast, poses), render_frames(plain, poses)):
         assert a.shape == (64, 64, 3) and a.dtype == np.uint8
         assert np.abs(a.astype(int) - b.astype(int)).max() <= 1
+
+
+def test_the_converted_network_is_kept_with_the_model_until_its_weights_change(tiny_run, tiny_target, tmp_path):
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run, ignore=shutil.ignore_patterns(CONVERTED_DIR))
+    poses = PoseSequence.load(run / "poses.npz").slice_frames(0, 5)
+    first = list(render_frames(load_appearance_model(run, "cpu", precision="fp32"), poses))
+    key = run / CONVERTED_DIR / "key.txt"
+    written = key.stat().st_mtime_ns
+    # Read back, not converted again: the same frames.
+    again = list(render_frames(load_appearance_model(run, "cpu", precision="fp32"), poses))
+    assert key.stat().st_mtime_ns == written and all(np.array_equal(a, b) for a, b in zip(first, again))
+    # Trained further, the model is converted again and renders its new weights.
+    video, pose_file = tiny_target
+    train_video(video, run, "small", TrainOptions(epochs=2, max_steps=1, val_frames=4), resume=True, poses=pose_file,
+                device="cpu")
+    fast = load_appearance_model(run, "cpu", precision="fp32")
+    plain = load_appearance_model(run, "cpu", optimize=False, precision="fp32")
+    assert key.stat().st_mtime_ns != written
+    for a, b in zip(render_frames(fast, poses), render_frames(plain, poses)):
+        assert np.abs(a.astype(int) - b.astype(int)).max() <= 1
+    # A damaged copy is converted again rather than read.
+    (run / CONVERTED_DIR / "generator.bin").write_bytes(b"")
+    damaged = list(render_frames(load_appearance_model(run, "cpu", precision="fp32"), poses))
+    assert all(np.abs(a.astype(int) - b.astype(int)).max() <= 1 for a, b in zip(damaged, render_frames(plain, poses)))
+    assert (run / CONVERTED_DIR / "generator.bin").stat().st_size > 0
 
 
 @pytest.mark.parametrize("optimize", [True, False])
