@@ -150,8 +150,8 @@ class OpenVINOGenerator:
 
 
 # The converted network of a run's generator, kept in the run folder: converting takes seconds, reading it back a
-# fraction of one. Its key names the weights, the input shape, the Winograd rewrite, OpenVINO's version and the
-# code that builds the network, so anything that would convert differently converts again.
+# fraction of one. Its key names the weights, the input shape, the Winograd rewrite, OpenVINO's and PyTorch's
+# versions and the code that builds the network, so anything that would convert differently converts again.
 CONVERTED_DIR = "openvino"
 _CONVERTED_XML = "generator.xml"
 _CONVERTED_KEY = "key.txt"
@@ -164,7 +164,7 @@ def _converted_key(generator: nn.Module, shape: tuple[int, ...], winograd: bool)
 
     from stage2_video import winograd as winograd_module
 
-    digest = hashlib.sha256(json.dumps([list(shape), winograd, openvino.__version__]).encode())
+    digest = hashlib.sha256(json.dumps([list(shape), winograd, openvino.__version__, torch.__version__]).encode())
     for module in (inspect.getmodule(type(generator)), winograd_module):
         digest.update(Path(inspect.getfile(module)).read_bytes())
     for name, tensor in generator.state_dict().items():
