@@ -191,7 +191,8 @@ def _write_converted(run_dir: Path, key: str, model: openvino.Model) -> None:
     full) only costs the next render the conversion."""
     import openvino
 
-    with contextlib.suppress(DancesynthError):
+    # OpenVINO reports a failed write as a RuntimeError, atomic_path an OSError as a DancesynthError.
+    with contextlib.suppress(DancesynthError, RuntimeError):
         with atomic_path(run_dir / CONVERTED_DIR, folder=True) as tmp:
             tmp.mkdir()
             openvino.save_model(model, tmp / _CONVERTED_XML, compress_to_fp16=False)
