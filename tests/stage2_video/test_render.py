@@ -86,6 +86,21 @@ def test_the_converted_network_is_kept_with_the_model_until_its_weights_change(t
     assert (run / CONVERTED_DIR / "generator.bin").stat().st_size > 0
 
 
+def test_a_converted_network_that_cannot_be_kept_still_renders_and_leaves_nothing(tiny_run, tmp_path, monkeypatch):
+    import openvino
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run, ignore=shutil.ignore_patterns(CONVERTED_DIR))
+
+    def disk_full(*args, **kwargs):
+        raise RuntimeError("No space left on device")
+
+    monkeypatch.setattr(openvino, "save_model", disk_full)
+    poses = PoseSequence.load(run / "poses.npz").slice_frames(0, 3)
+    assert len(list(render_frames(load_appearance_model(run, "cpu", precision="fp32"), poses))) == 3
+    assert not [p.name for p in run.iterdir() if "openvino" in p.name]
+
+
 @pytest.mark.parametrize("optimize", [True, False])
 def test_bf16_rendering_stays_close_to_fp32(tiny_run, monkeypatch, optimize):
     # On a CPU without bf16 instructions OpenVINO keeps f32 and PyTorch's bf16 autocast still runs.
