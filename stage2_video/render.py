@@ -123,20 +123,13 @@ class OpenVINOGenerator:
 
         shape = (1, in_channels, height, width)
         use_winograd = precision == torch.float32 if winograd is None else winograd
-        key = _converted_key(generator, shape, use_winograd) if cache is not None else ""
-        model = _read_converted(cache, key) if cache is not None else None
-        if model is None:
-            example = torch.zeros(shape)
-            with torch.no_grad(), warnings.catch_warnings():
-                # The tracer warns about instance norm's shape checks, fixed for a fixed input size.
-                warnings.simplefilter("ignore")
-                # Traced here without autograd or the tracer's re-run check: left to the converter, tracing held
-                # about 400 MB more at its peak for the small preset.
-                if use_winograd:
-                    generator = winograd_generator(generator, in_channels, width, height)
-                traced = torch.jit.trace(generator, example, check_trace=False)
-                model = openvino.convert_model(traced, example_input=example, input=[shape])
-            if cache is not None:
+        if cache is None:
+            model = _convert(generator, shape, use_winograd)
+        else:
+            key = _converted_key(generator, shape, use_winograd)
+            model = _read_converted(cache, key)
+            if model is None:
+                model = _convert(generator, shape, use_winograd)
                 _write_converted(cache, key, model)
         compiled = openvino.Core().compile_model(model, "CPU", {
             "INFERENCE_PRECISION_HINT": "bf16" if precision == torch.bfloat16 else "f32", "PERFORMANCE_HINT": "LATENCY",
@@ -155,6 +148,23 @@ class OpenVINOGenerator:
 CONVERTED_DIR = "openvino"
 _CONVERTED_XML = "generator.xml"
 _CONVERTED_KEY = "key.txt"
+
+
+def _convert(generator: nn.Module, shape: tuple[int, int, int, int], winograd: bool) -> openvino.Model:
+    """``generator`` traced for ``[1, C, H, W]`` inputs of ``shape`` (its residual blocks first rewritten as Winograd
+    convolutions with ``winograd``) and converted to an OpenVINO model."""
+    import openvino
+
+    example = torch.zeros(shape)
+    with torch.no_grad(), warnings.catch_warnings():
+        # The tracer warns about instance norm's shape checks, fixed for a fixed input size.
+        warnings.simplefilter("ignore")
+        # Traced here without autograd or the tracer's re-run check: left to the converter, tracing held about
+        # 400 MB more at its peak for the small preset.
+        if winograd:
+            generator = winograd_generator(generator, shape[1], shape[3], shape[2])
+        traced = torch.jit.trace(generator, example, check_trace=False)
+        return openvino.convert_model(traced, example_input=example, input=[shape])
 
 
 def _converted_key(generator: nn.Module, shape: tuple[int, ...], winograd: bool) -> str:
