@@ -452,8 +452,9 @@ def video_trainer(video: str | os.PathLike, run_dir: str | os.PathLike, preset_n
         bank = frame_bank(bank_frames, masks, seq, bank_framing, split_ranges(len(seq), config.val_fraction)[0],
                           config.prior_candidates)
     target = TargetVideo(frames, seq, framing, plate if config.background else None, bank, config.prior_scale)
-    trainer = VideoTrainer(config, target, run, dev, build_vgg_loss(vgg_weights),
-                      options, str(video), dtype)
+    # A zero-minute budget trains nothing: no perceptual loss to load, and no notice of its absence.
+    vgg = None if options.minutes == 0 else build_vgg_loss(vgg_weights)
+    trainer = VideoTrainer(config, target, run, dev, vgg, options, str(video), dtype)
     if resume:
         trainer.restore()
     return trainer
