@@ -9,15 +9,19 @@ that frame's pose, grown by :data:`CROP_GROWTH`), and what it returns is kept on
 person or a prop next to the target never counts). Frames where it finds nobody fall back to :func:`person_mask`.
 The masks are framed like the training frames (:class:`stage2_video.framing.Framing`) and cached in the run folder
 as a uint8 ``.npy`` memory map keyed by the video's content, the framing and the poses, like the frames
-(:func:`stage2_video.training_data.cache_file`).
+(:func:`stage2_video.training_data.cache_file`). A graph runs on one core, so :func:`cache_masks` runs one per core
+on consecutive stretches of the video side by side (:func:`stretches`).
 """
 
 from __future__ import annotations
 
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import cv2
 import numpy as np
+import torch
 
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import read_frames
@@ -47,6 +51,9 @@ MASK_THRESHOLD = 0.5
 KEEP_MARGIN = 0.6
 # Fallback where the segmenter finds nobody: the pose drawn with this margin (torso lengths).
 FALLBACK_MARGIN = 0.1
+# Each stretch of the video segmented by a graph of its own holds at least this many frames: a graph's first frame
+# is a search (a second per graph), and the video's frames before the stretch are decoded again to reach it.
+MIN_STRETCH_FRAMES = 150
 
 
 def torso_length(keypoints: np.ndarray, reference: float) -> float:
@@ -169,29 +176,46 @@ def framed_mask(mask: np.ndarray, framing: Framing) -> np.ndarray:
     return framing.image(mask.astype(np.uint8) * 255)
 
 
-def cache_masks(video: Path, framing: VideoFraming, run_dir: Path, poses: PoseSequence) -> np.ndarray:
+def stretches(frames: int, workers: int) -> list[range]:
+    """Consecutive ranges covering ``range(frames)``: ``workers`` of them, fewer where a stretch would hold under
+    :data:`MIN_STRETCH_FRAMES` frames (at least one)."""
+    count = max(1, min(workers, frames // MIN_STRETCH_FRAMES))
+    bounds = np.linspace(0, frames, count + 1).round().astype(int)
+    return [range(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+
+
+def cache_masks(video: Path, framing: VideoFraming, run_dir: Path, poses: PoseSequence,
+                workers: int | None = None) -> np.ndarray:
     """Framed person masks ``[T, H, W]`` uint8 (memory-mapped; frame t framed as ``framing.frames(poses)[t]``),
-    cached in ``run_dir`` keyed by the video's content, the framing and the poses."""
+    cached in ``run_dir`` keyed by the video's content, the framing and the poses. ``workers``: segmenting graphs
+    run side by side (default: PyTorch's thread count, the cores this process may use)."""
     path = Path(run_dir) / masks_file(framing)
     boxes = framing.frames(poses)
+    parts = stretches(len(poses), workers or torch.get_num_threads())
 
     def write(tmp: Path) -> None:
         reference = body_scale(poses)
         out = np.lib.format.open_memmap(tmp, mode="w+", dtype=np.uint8,
                                         shape=(len(poses), framing.out_height, framing.out_width))
-        count = 0
-        segmenter = None
-        with native_logs_hidden_unless_debug():
-            segmenter = Segmenter()
+        counting = threading.Lock()
+
+        def segment(part: range, out: np.ndarray) -> int:
+            """Mask the frames of ``part`` into ``out``; the number of them the video holds."""
+            segmenter, frames, count = Segmenter(), read_frames(video, part.start), 0
             try:
-                for frame in track(read_frames(video), total=len(poses), desc="person masks", unit="frame"):
-                    if count == len(poses):
-                        break
-                    out[count] = framed_mask(frame_mask(segmenter, frame, poses.keypoints[count], reference),
-                                             boxes[count])
+                for t, frame in zip(part, frames):
+                    out[t] = framed_mask(frame_mask(segmenter, frame, poses.keypoints[t], reference), boxes[t])
                     count += 1
+                    with counting:
+                        progress.update()
             finally:
+                frames.close()
                 segmenter.close()
+            return count
+
+        with (native_logs_hidden_unless_debug(), track(total=len(poses), desc="person masks", unit="frame") as progress,
+              ThreadPoolExecutor(len(parts)) as pool):
+            count = sum(pool.map(segment, parts, [out] * len(parts)))
         out.flush()
         del out
         if count < len(poses):

@@ -171,13 +171,16 @@ def probe_video(path: str | os.PathLike) -> VideoInfo:
     return VideoInfo(fps=fps, width=width, height=height, num_frames=num_frames, duration=duration, rotation=rotation)
 
 
-def read_frames(path: str | os.PathLike) -> Iterator[np.ndarray]:
-    """Stream the frames of a video as upright RGB uint8 ``[H, W, 3]`` arrays, one at a time.
+def read_frames(path: str | os.PathLike, start: int = 0) -> Iterator[np.ndarray]:
+    """Stream the frames of a video from frame index ``start`` on as upright RGB uint8 ``[H, W, 3]`` arrays, one
+    at a time (the frames before ``start`` are decoded, since compressed frames depend on earlier ones, but not
+    converted).
 
     The rotation the container declares (display-matrix side data, as phones write) is applied.
     """
-    for frame in _decoded_frames(path):
-        yield _upright(frame.to_ndarray(format="rgb24"), frame.rotation)
+    for index, frame in enumerate(_decoded_frames(path)):
+        if index >= start:
+            yield _upright(frame.to_ndarray(format="rgb24"), frame.rotation)
 
 
 def _as_channels_first(audio: np.ndarray) -> np.ndarray:

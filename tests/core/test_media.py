@@ -107,6 +107,15 @@ def test_rotated_phone_video_comes_out_upright(tmp_path):
     assert upright[:6].mean() > 200 and upright[12:].mean() < 30  # ... is on top once turned clockwise
 
 
+def test_frames_read_from_a_later_index_are_the_same_frames(tmp_path):
+    path = tmp_path / "counting.mp4"
+    media.write_video(path, [np.full((16, 16, 3), 20 * i, np.uint8) for i in range(8)], 15.0)
+    every = list(media.read_frames(path))
+    later = list(media.read_frames(path, start=5))
+    assert len(later) == 3 and all(np.array_equal(a, b) for a, b in zip(later, every[5:]))
+    assert list(media.read_frames(path, start=8)) == []
+
+
 def test_upright_applies_rotation():
     image = np.arange(6, dtype=np.uint8).reshape(2, 3, 1)
     assert media._upright(image, 0) is image

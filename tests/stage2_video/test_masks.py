@@ -8,11 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import read_frames, write_video
 from dancesynth.core.skeleton import JOINT_INDEX, PoseSequence, body_scale
 from stage2_video import masks
 from stage2_video.framing import person_framing
-from stage2_video.masks import Segmenter, cache_masks, frame_mask, person_mask
+from stage2_video.masks import Segmenter, cache_masks, frame_mask, person_mask, stretches
 
 REAL = Path(__file__).parents[1] / "data" / "real_person"
 STANDING = 80  # the tracked man stands on the box, his pose well measured; a second person walks by later
@@ -62,3 +63,36 @@ def test_masks_are_cached_and_keyed_by_the_videos_content(tmp_path, make_poses, 
     write_video(video, [np.full_like(frames[0], 30)] * len(poses), poses.fps)  # new content, same name
     cache_masks(video, framing, tmp_path, poses)
     assert len(calls) == 12
+
+
+def test_stretches_cover_every_frame_once_and_are_long_enough():
+    for frames, workers in ((1, 4), (149, 2), (300, 2), (1571, 2), (1571, 3), (10_000, 4)):
+        parts = stretches(frames, workers)
+        assert [t for part in parts for t in part] == list(range(frames))
+        assert len(parts) <= workers and (len(parts) == 1 or min(map(len, parts)) >= masks.MIN_STRETCH_FRAMES)
+    assert len(stretches(1571, 2)) == 2
+
+
+def test_masks_made_in_stretches_side_by_side_are_every_frames(tmp_path, make_poses, monkeypatch):
+    poses = make_poses(frames=9)
+    video = tmp_path / "a.mp4"
+    # Each frame's own shade: a mask written at the wrong index would show it.
+    write_video(video, [np.full((poses.height, poses.width, 3), 20 * t, np.uint8) for t in range(9)], poses.fps)
+    framing = person_framing(poses, 32, 32)
+    for run in ("three", "one", "short"):
+        (tmp_path / run).mkdir()
+    seen = {}
+    real_frame_mask = masks.frame_mask
+    monkeypatch.setattr(masks, "MIN_STRETCH_FRAMES", 2)
+    monkeypatch.setattr(masks, "frame_mask",
+                        lambda segmenter, frame, kp, ref: seen.setdefault(round(frame.mean() / 20), kp) is not None
+                        and real_frame_mask(segmenter, frame, kp, ref))
+    split = np.array(cache_masks(video, framing, tmp_path / "three", poses, workers=3))
+    assert sorted(seen) == list(range(9))
+    assert len({poses.keypoints[t].tobytes() for t in range(9)}) == 9
+    assert all(np.array_equal(seen[t], poses.keypoints[t]) for t in range(9)), "each frame masked with its own pose"
+    assert np.array_equal(split, np.array(cache_masks(video, framing, tmp_path / "one", poses, workers=1)))
+    short = tmp_path / "short.mp4"
+    write_video(short, [np.full((poses.height, poses.width, 3), 90, np.uint8)] * 7, poses.fps)
+    with pytest.raises(DancesynthError, match="has 7 frames but the poses have 9"):
+        cache_masks(short, framing, tmp_path / "short", poses, workers=3)
