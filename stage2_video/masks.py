@@ -10,7 +10,7 @@ person or a prop next to the target never counts). Frames where it finds nobody 
 The masks are framed like the training frames (:class:`stage2_video.framing.Framing`) and cached in the run folder
 as a uint8 ``.npy`` memory map keyed by the video's content, the framing and the poses, like the frames
 (:func:`stage2_video.training_data.cache_file`). A graph runs on one core, so :func:`cache_masks` runs one per core
-on consecutive stretches of the video side by side (:func:`stretches`).
+on consecutive stretches of the video side by side (:func:`dancesynth.core.media.frame_stretches`).
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import numpy as np
 import torch
 
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.media import read_frames
+from dancesynth.core.media import frame_stretches, read_frames
 from dancesynth.core.progress import track
 from dancesynth.core.skeleton import BODY25_LIMBS, JOINT_INDEX, NECK, ROOT, PoseSequence, body_scale
 from stage2_video.extract import native_logs_hidden_unless_debug
@@ -51,9 +51,6 @@ MASK_THRESHOLD = 0.5
 KEEP_MARGIN = 0.6
 # Fallback where the segmenter finds nobody: the pose drawn with this margin (torso lengths).
 FALLBACK_MARGIN = 0.1
-# Each stretch of the video segmented by a graph of its own holds at least this many frames: a graph's first frame
-# is a search (a second per graph), and the video's frames before the stretch are decoded again to reach it.
-MIN_STRETCH_FRAMES = 150
 
 
 def torso_length(keypoints: np.ndarray, reference: float) -> float:
@@ -176,14 +173,6 @@ def framed_mask(mask: np.ndarray, framing: Framing) -> np.ndarray:
     return framing.image(mask.astype(np.uint8) * 255)
 
 
-def stretches(frames: int, workers: int) -> list[range]:
-    """Consecutive ranges covering ``range(frames)``: ``workers`` of them, fewer where a stretch would hold under
-    :data:`MIN_STRETCH_FRAMES` frames (at least one)."""
-    count = max(1, min(workers, frames // MIN_STRETCH_FRAMES))
-    bounds = np.linspace(0, frames, count + 1).round().astype(int)
-    return [range(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
-
-
 def cache_masks(video: Path, framing: VideoFraming, run_dir: Path, poses: PoseSequence,
                 workers: int | None = None) -> np.ndarray:
     """Framed person masks ``[T, H, W]`` uint8 (memory-mapped; frame t framed as ``framing.frames(poses)[t]``),
@@ -191,7 +180,7 @@ def cache_masks(video: Path, framing: VideoFraming, run_dir: Path, poses: PoseSe
     run side by side (default: PyTorch's thread count, the cores this process may use)."""
     path = Path(run_dir) / masks_file(framing)
     boxes = framing.frames(poses)
-    parts = stretches(len(poses), workers or torch.get_num_threads())
+    parts = frame_stretches(len(poses), workers or torch.get_num_threads())
 
     def write(tmp: Path) -> None:
         reference = body_scale(poses)

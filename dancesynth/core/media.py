@@ -34,6 +34,9 @@ SONG_SAMPLE_RATE = 22050
 SILENCE_RMS = 1e-4
 # Float audio may overshoot full scale a little; samples beyond this are broken data, not loud music.
 MAX_SAMPLE = 100.0
+# Frames a worker reading its own stretch of a video (frame_stretches) is given at least: each decodes the video's
+# earlier frames again to reach its stretch, and its per-video work (a pose graph's first search) starts anew.
+MIN_STRETCH_FRAMES = 150
 
 
 def _open_input(path: str | os.PathLike) -> av.container.InputContainer:
@@ -169,6 +172,15 @@ def probe_video(path: str | os.PathLike) -> VideoInfo:
     if int(round(rotation / 90.0)) % 2:
         width, height = height, width
     return VideoInfo(fps=fps, width=width, height=height, num_frames=num_frames, duration=duration, rotation=rotation)
+
+
+def frame_stretches(frames: int, workers: int) -> list[range]:
+    """Consecutive ranges of frame indices covering ``range(frames)``, for ``workers`` that each read their own
+    stretch of a video (:func:`read_frames` with ``start``) side by side: ``workers`` of them, fewer where a stretch
+    would hold under :data:`MIN_STRETCH_FRAMES` frames (at least one)."""
+    count = max(1, min(workers, frames // MIN_STRETCH_FRAMES))
+    bounds = np.linspace(0, frames, count + 1).round().astype(int)
+    return [range(a, b) for a, b in zip(bounds[:-1], bounds[1:])]
 
 
 def read_frames(path: str | os.PathLike, start: int = 0) -> Iterator[np.ndarray]:

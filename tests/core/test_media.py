@@ -116,6 +116,15 @@ def test_frames_read_from_a_later_index_are_the_same_frames(tmp_path):
     assert list(media.read_frames(path, start=8)) == []
 
 
+def test_frame_stretches_cover_every_frame_once_and_are_long_enough():
+    for frames, workers in ((0, 2), (1, 4), (149, 2), (300, 2), (1571, 2), (1571, 3), (10_000, 4)):
+        parts = media.frame_stretches(frames, workers)
+        assert [t for part in parts for t in part] == list(range(frames))
+        assert 1 <= len(parts) <= workers
+        assert len(parts) == 1 or min(map(len, parts)) >= media.MIN_STRETCH_FRAMES
+    assert len(media.frame_stretches(1571, 2)) == 2
+
+
 def test_upright_applies_rotation():
     image = np.arange(6, dtype=np.uint8).reshape(2, 3, 1)
     assert media._upright(image, 0) is image

@@ -8,12 +8,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from dancesynth.core import media
 from dancesynth.core.errors import DancesynthError
 from dancesynth.core.media import read_frames, write_video
 from dancesynth.core.skeleton import JOINT_INDEX, PoseSequence, body_scale
 from stage2_video import masks
 from stage2_video.framing import person_framing
-from stage2_video.masks import Segmenter, cache_masks, frame_mask, person_mask, stretches
+from stage2_video.masks import Segmenter, cache_masks, frame_mask, person_mask
 
 REAL = Path(__file__).parents[1] / "data" / "real_person"
 STANDING = 80  # the tracked man stands on the box, his pose well measured; a second person walks by later
@@ -65,14 +66,6 @@ def test_masks_are_cached_and_keyed_by_the_videos_content(tmp_path, make_poses, 
     assert len(calls) == 12
 
 
-def test_stretches_cover_every_frame_once_and_are_long_enough():
-    for frames, workers in ((1, 4), (149, 2), (300, 2), (1571, 2), (1571, 3), (10_000, 4)):
-        parts = stretches(frames, workers)
-        assert [t for part in parts for t in part] == list(range(frames))
-        assert len(parts) <= workers and (len(parts) == 1 or min(map(len, parts)) >= masks.MIN_STRETCH_FRAMES)
-    assert len(stretches(1571, 2)) == 2
-
-
 def test_masks_made_in_stretches_side_by_side_are_every_frames(tmp_path, make_poses, monkeypatch):
     poses = make_poses(frames=9)
     video = tmp_path / "a.mp4"
@@ -83,7 +76,7 @@ def test_masks_made_in_stretches_side_by_side_are_every_frames(tmp_path, make_po
         (tmp_path / run).mkdir()
     seen = {}
     real_frame_mask = masks.frame_mask
-    monkeypatch.setattr(masks, "MIN_STRETCH_FRAMES", 2)
+    monkeypatch.setattr(media, "MIN_STRETCH_FRAMES", 2)
     monkeypatch.setattr(masks, "frame_mask",
                         lambda segmenter, frame, kp, ref: seen.setdefault(round(frame.mean() / 20), kp) is not None
                         and real_frame_mask(segmenter, frame, kp, ref))
