@@ -76,10 +76,13 @@ def test_masks_made_in_stretches_side_by_side_are_every_frames(tmp_path, make_po
         (tmp_path / run).mkdir()
     seen = {}
     real_frame_mask = masks.frame_mask
+
+    def recording(segmenter, frame, keypoints, reference):
+        seen[round(frame.mean() / 20)] = keypoints
+        return real_frame_mask(segmenter, frame, keypoints, reference)
+
     monkeypatch.setattr(media, "MIN_STRETCH_FRAMES", 2)
-    monkeypatch.setattr(masks, "frame_mask",
-                        lambda segmenter, frame, kp, ref: seen.setdefault(round(frame.mean() / 20), kp) is not None
-                        and real_frame_mask(segmenter, frame, kp, ref))
+    monkeypatch.setattr(masks, "frame_mask", recording)
     split = np.array(cache_masks(video, framing, tmp_path / "three", poses, workers=3))
     assert sorted(seen) == list(range(9))
     assert len({poses.keypoints[t].tobytes() for t in range(9)}) == 9
