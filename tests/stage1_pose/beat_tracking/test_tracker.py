@@ -97,7 +97,7 @@ def test_shipped_model_is_small_and_tracks_a_real_recording():
     and its beats within 70 ms for the first 15 s. After 17 s the network's peaks move to the off-beats and the
     decoder follows them (F 0.65 over the whole excerpt; docs/methods/beat_tracking.md, limitations)."""
     members = sorted(PRETRAINED.iterdir())
-    assert len(members) == 2
+    assert len(members) == 3
     assert all({p.name for p in folder.iterdir()} == {"config.json", "model.safetensors"} for folder in members)
     assert sum(p.stat().st_size for folder in members for p in folder.iterdir()) <= 5_000_000
     truth = np.array(json.loads(REAL_SONG.with_suffix(".beats.json").read_text())["beats"])
