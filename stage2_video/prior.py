@@ -13,7 +13,8 @@ retrieval). Here, for every pose to render:
    way, and frames whose hands lie on the group's parts costing more (an arm too, when its hand lies on the head,
    torso or a leg where the pose's does not: it would carry their pixels away). A choice is kept from frame to frame
    while it stays nearly as good (no flicker), and frames within ``exclude`` of the frame being learnt are never
-   returned (the network must learn to repair a warp, not to copy its input).
+   returned (the network must learn to repair a warp, not to copy its input), nor frames whose person mask spreads
+   far beyond the body (a failed segmentation, :data:`MASK_LEAK_LIMIT`).
 2. **Parts** (:func:`part_labels`): the source frame's person mask (:mod:`stage2_video.masks`) is split into head,
    torso, upper arms, forearms, hands, thighs, shins and feet by the nearest drawn bone (a hand belongs to
    its arm even where it rests on the torso or a thigh); a piece of a part's region apart from the pixels its
@@ -96,6 +97,10 @@ COLOUR_FRAMES = 128
 # pose put elsewhere (a glove at the hip labelled thigh, 200-1400 times); the dancer's gloves, not sports2d's light
 # on his legs (docs/methods/warped_prior.md).
 STRAY_RATIO = 100.0
+# A bank frame whose person mask lies beyond every part's reach over more than this share of its pixels is a failed
+# segmentation (sports2d's backlit flip: sunlit leaves beside the body, 27-54 %; the dancer's frames at most 8 %):
+# its parts carry pieces of the scene along, so retrieval passes it over.
+MASK_LEAK_LIMIT = 0.2
 
 
 @dataclass(frozen=True)
@@ -561,14 +566,15 @@ def torso_moves(src: np.ndarray, dst: np.ndarray, scale: float = math.nan
 @dataclass
 class Source:
     """One bank frame ready to be cut into parts: its ``[H, W, 3]`` uint8 image, the same with the torso's hidden
-    pixels filled in (:func:`fill_torso`), ``[H, W]`` uint8 part labels, the torso's ``[H, W]`` bool region and its
-    ``[25, 3]`` pose in bank pixels."""
+    pixels filled in (:func:`fill_torso`), ``[H, W]`` uint8 part labels, the torso's ``[H, W]`` bool region, its
+    ``[25, 3]`` pose in bank pixels and the share of its mask's pixels no part reaches (:data:`MASK_LEAK_LIMIT`)."""
 
     image: np.ndarray
     torso_image: np.ndarray
     labels: np.ndarray
     torso: np.ndarray
     keypoints: np.ndarray
+    leak: float = 0.0
     layers: dict[int, tuple[int, int, np.ndarray] | None] = dataclasses.field(default_factory=dict, repr=False)
 
     def region(self, part: int) -> np.ndarray:
@@ -680,6 +686,8 @@ class FrameBank:
         self.colours = part_colours([np.asarray(self.frames[t]) for t in sample],
                                     [part_labels(np.asarray(self.masks[t]), self.keypoints[t]) for t in sample])
         self._sources: OrderedDict[int, Source] = OrderedDict()
+        # Members found to be failed segmentations when first cut (:data:`MASK_LEAK_LIMIT`); never retrieved again.
+        self.leaking = np.zeros(len(self.members), bool)
         self._cache_size = cache_size
 
     def __len__(self) -> int:
@@ -691,10 +699,12 @@ class FrameBank:
             self._sources.move_to_end(t)
             return self._sources[t]
         kp = self.keypoints[t]
+        mask = np.asarray(self.masks[t]) > 127
         labels = part_labels(np.asarray(self.masks[t]), kp)
         image = clean_strays(np.asarray(self.frames[t]), labels, self.colours)
         torso_image, torso = fill_torso(image, labels, kp)
-        source = Source(image, torso_image, labels, torso, kp)
+        leak = float((labels[mask] == NO_PART).mean()) if mask.any() else 0.0
+        source = Source(image, torso_image, labels, torso, kp, leak=leak)
         self._sources[t] = source
         if len(self._sources) > self._cache_size:
             self._sources.popitem(last=False)
@@ -727,10 +737,23 @@ class FrameBank:
             if not allowed.any():  # a bank shorter than the window: keep the farthest frames
                 distance = np.abs(self.members - (exclude[0] + exclude[1] - 1) / 2)
                 allowed = distance == distance.max()
+        costs = {group: cost + occlusion[group] for group, cost in costs.items()}
+        while True:
+            usable = allowed & ~self.leaking
+            fallback = not usable.any()  # every allowed frame's mask failed: a leaking part rather than none
+            chosen = self._nearest(costs, allowed if fallback else usable, count, previous)
+            leaking = {t for choice in chosen for t in choice.values() if self.source(t).leak > MASK_LEAK_LIMIT}
+            if fallback or not leaking:
+                return chosen
+            self.leaking |= np.isin(self.members, list(leaking))
+
+    def _nearest(self, costs: dict[str, np.ndarray], allowed: np.ndarray, count: int,
+                 previous: dict[str, int] | None) -> list[dict[str, int]]:
+        """:meth:`choices` among the ``allowed`` members, given each group's ``[N]`` costs."""
         count = min(count, int(allowed.sum()))
         ranked = {}
         for group, cost in costs.items():
-            cost = np.where(allowed, cost + occlusion[group], np.inf)
+            cost = np.where(allowed, cost, np.inf)
             nearest = np.argsort(cost, kind="stable")[:count]
             best = int(nearest[0])
             if previous and group in previous:

@@ -387,3 +387,19 @@ def test_the_median_prior_drops_a_part_that_only_one_of_its_frames_gets_wrong():
         assert (prior[..., 3][inside] == 255).all()
     with pytest.raises(ValueError, match="odd"):
         FrameBank(frames, masks, poses, np.arange(3), candidates=2)
+
+
+def test_a_frame_whose_mask_spreads_over_the_scene_is_never_retrieved():
+    kp = standing_pose()
+    image, mask = textured_person(kp)
+    spilt = mask.copy()
+    spilt[:, 96:] = 255  # a failed segmentation: a band of scene beside the person taken for them
+    poses = np.repeat(kp[None], 2, axis=0)
+    poses[1, :, :2] += 0.5  # frame 1 a little farther from the query than frame 0
+    frames, plate = np.stack([image, image]), np.zeros((SIZE, SIZE, 3), np.uint8)
+    bank = FrameBank(frames, np.stack([spilt, mask]), poses, np.arange(2))
+    assert set(bank.retrieve(kp).values()) == {1}
+    assert bank.retrieve(kp, exclude=(1, 2)) == dict.fromkeys(GROUPS, 0)  # the only frame allowed: used all the same
+    clean = FrameBank(frames, np.stack([mask, mask]), poses, np.arange(2))
+    assert set(clean.retrieve(kp).values()) == {0}
+    assert (PriorRenderer(bank)(kp, plate)[:, 100:, 3] == 0).all()
