@@ -101,6 +101,19 @@ STRAY_RATIO = 100.0
 # segmentation (sports2d's backlit flip: sunlit leaves beside the body, 27-54 %; the dancer's frames at most 8 %):
 # its parts carry pieces of the scene along, so retrieval passes it over.
 MASK_LEAK_LIMIT = 0.2
+# The body as a user names it, by the bones that show each part. A part whose bones' middles lie on the person's
+# mask in fewer than SEEN_SHARE of the bank's frames is hidden in the target video, and a dance shows the background
+# where its poses need it (a pianist's hips behind his keyboard: 17-45 % of frames; every bone of the dancer and of
+# sports2d's man: 85 % or more).
+SEEN_PARTS: dict[str, tuple[tuple[int, int], ...]] = {
+    "torso": ((J["Neck"], J["MidHip"]),), "shoulders": ((J["Neck"], J["RShoulder"]), (J["Neck"], J["LShoulder"])),
+    "right upper arm": ((J["RShoulder"], J["RElbow"]),), "right forearm": ((J["RElbow"], J["RWrist"]),),
+    "left upper arm": ((J["LShoulder"], J["LElbow"]),), "left forearm": ((J["LElbow"], J["LWrist"]),),
+    "hips": ((J["MidHip"], J["RHip"]), (J["MidHip"], J["LHip"])), "right thigh": ((J["RHip"], J["RKnee"]),),
+    "right shin": ((J["RKnee"], J["RAnkle"]),), "left thigh": ((J["LHip"], J["LKnee"]),),
+    "left shin": ((J["LKnee"], J["LAnkle"]),),
+}
+SEEN_SHARE = 0.5
 
 
 @dataclass(frozen=True)
@@ -415,6 +428,28 @@ def _detached(region: np.ndarray, on_lines: np.ndarray) -> np.ndarray:
     return region & ~np.isin(pieces, anchored)
 
 
+def parts_seen(masks: list[np.ndarray], keypoints: np.ndarray) -> dict[str, float]:
+    """For each part of :data:`SEEN_PARTS`, the share of frames (``[H, W]`` person masks, non-zero on the person,
+    and their ``[N, 25, 3]`` poses in the same pixels) whose pose has the part's bones and whose mask holds the
+    middle of each (the half of 9 points along its middle 60 %); NaN where no pose has the bones. The bones' ends
+    are left out: they lie on joints other parts share."""
+    along = np.linspace(0.2, 0.8, 9)[:, None]
+    seen: dict[str, float] = {}
+    for part, bones in SEEN_PARTS.items():
+        shown = []
+        for mask, kp in zip(masks, np.asarray(keypoints, np.float32)):
+            if not all(kp[a, 2] >= MIN_CONFIDENCE and kp[b, 2] >= MIN_CONFIDENCE for a, b in bones):
+                continue
+            points = np.concatenate([kp[a, :2] + along * (kp[b, :2] - kp[a, :2]) for a, b in bones])
+            x = np.clip(np.round(points[:, 0]).astype(int), 0, mask.shape[1] - 1)
+            y = np.clip(np.round(points[:, 1]).astype(int), 0, mask.shape[0] - 1)
+            inside = (points[:, 0] >= 0) & (points[:, 0] < mask.shape[1]) & (points[:, 1] >= 0) & (
+                points[:, 1] < mask.shape[0])
+            shown.append(((mask[y, x] > 127) & inside).mean() >= 0.5)
+        seen[part] = float(np.mean(shown)) if shown else math.nan
+    return seen
+
+
 def colour_index(image: np.ndarray) -> np.ndarray:
     """``[H, W]`` int bin of each pixel of an ``[H, W, 3]`` uint8 image: :data:`COLOUR_LEVELS` levels a channel."""
     step = 256 // COLOUR_LEVELS
@@ -685,6 +720,7 @@ class FrameBank:
         sample = self.members[np.linspace(0, len(self.members) - 1, min(COLOUR_FRAMES, len(self.members))).astype(int)]
         self.colours = part_colours([np.asarray(self.frames[t]) for t in sample],
                                     [part_labels(np.asarray(self.masks[t]), self.keypoints[t]) for t in sample])
+        self.seen = parts_seen([np.asarray(self.masks[t]) for t in sample], self.keypoints[sample])
         self._sources: OrderedDict[int, Source] = OrderedDict()
         # Members found to be failed segmentations when first cut (:data:`MASK_LEAK_LIMIT`); never retrieved again.
         self.leaking = np.zeros(len(self.members), bool)
@@ -692,6 +728,11 @@ class FrameBank:
 
     def __len__(self) -> int:
         return len(self.members)
+
+    def hidden_parts(self) -> list[str]:
+        """The parts of :data:`SEEN_PARTS` the target video shows in fewer than :data:`SEEN_SHARE` of the bank's
+        frames where its pose places them (hidden behind something, or outside the frame)."""
+        return [part for part, share in self.seen.items() if share < SEEN_SHARE]
 
     def source(self, t: int) -> Source:
         """Frame ``t`` cut into parts (cached)."""

@@ -17,6 +17,7 @@ import contextlib
 import functools
 import hashlib
 import json
+import logging
 import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -34,6 +35,8 @@ from dancesynth.core.progress import track
 from dancesynth.core.skeleton import PoseSequence
 from stage2_video.framing import Framing, VideoFraming, condition, plate_crop, usable_frames
 from stage2_video.prior import FrameBank, PriorRenderer, bank_keypoints, scaled_framing
+
+logger = logging.getLogger(__name__)
 
 POSES_FILE = "poses.npz"
 # latest.json's kind of an appearance model's run (stage2_video.train writes it, the readers check it).
@@ -232,8 +235,22 @@ def frame_bank(frames: np.ndarray, masks: np.ndarray, poses: PoseSequence, bank_
     if not kept:
         raise DancesynthError("The person is found in too few frames of the target video to learn from; use a "
                               "video where one person stays fully visible.")
-    return FrameBank(frames, masks, bank_keypoints(poses.keypoints, bank_framing.frames(poses)), np.array(kept),
+    bank = FrameBank(frames, masks, bank_keypoints(poses.keypoints, bank_framing.frames(poses)), np.array(kept),
                      candidates=candidates, scene=poses.keypoints)
+    hidden = bank.hidden_parts()
+    if hidden:
+        named = hidden[0] if len(hidden) == 1 else f"{', '.join(hidden[:-1])} and {hidden[-1]}"
+        _warn_once(f"The target video shows the person's {named} in fewer than half of its frames "
+                   "(hidden behind something, or outside the picture), so a dance shows the background there; a video "
+                   "where the whole body is visible gives a whole person.")
+    return bank
+
+
+@functools.cache
+def _warn_once(message: str) -> None:
+    """Log ``message`` as a warning the first time only: training and rendering in one process build the bank
+    twice."""
+    logger.warning(message)
 
 
 def prior_images(renderer: PriorRenderer, keypoints: np.ndarray, bank_framing: Framing, plate: np.ndarray,

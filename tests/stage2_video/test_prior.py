@@ -403,3 +403,15 @@ def test_a_frame_whose_mask_spreads_over_the_scene_is_never_retrieved():
     clean = FrameBank(frames, np.stack([mask, mask]), poses, np.arange(2))
     assert set(clean.retrieve(kp).values()) == {0}
     assert (PriorRenderer(bank)(kp, plate)[:, 100:, 3] == 0).all()
+
+
+def test_parts_the_video_hides_in_most_frames_are_named():
+    # A person standing behind a table that hides the hips and thighs in three frames of four.
+    kp = standing_pose()
+    image, mask = textured_person(kp)
+    behind = mask.copy()
+    behind[62:90] = 0
+    frames = np.stack([image] * 4)
+    bank = FrameBank(frames, np.stack([behind, behind, behind, mask]), np.stack([kp] * 4), np.arange(4))
+    assert bank.hidden_parts() == ["hips", "right thigh", "left thigh"]
+    assert FrameBank(frames, np.stack([mask] * 4), np.stack([kp] * 4), np.arange(4)).hidden_parts() == []
