@@ -114,6 +114,9 @@ SEEN_PARTS: dict[str, tuple[tuple[int, int], ...]] = {
     "left shin": ((J["LKnee"], J["LAnkle"]),),
 }
 SEEN_SHARE = 0.5
+# A part whose bones the poses have in fewer than this share of the bank's frames is outside the picture (a video
+# from the waist up); a side view's far arm, hidden behind the body, is still posed in half of sports2d's frames.
+MIN_POSED_SHARE = 0.1
 
 
 @dataclass(frozen=True)
@@ -428,13 +431,13 @@ def _detached(region: np.ndarray, on_lines: np.ndarray) -> np.ndarray:
     return region & ~np.isin(pieces, anchored)
 
 
-def parts_seen(masks: list[np.ndarray], keypoints: np.ndarray) -> dict[str, float]:
-    """For each part of :data:`SEEN_PARTS`, the share of frames (``[H, W]`` person masks, non-zero on the person,
-    and their ``[N, 25, 3]`` poses in the same pixels) whose pose has the part's bones and whose mask holds the
-    middle of each (the half of 9 points along its middle 60 %); NaN where no pose has the bones. The bones' ends
-    are left out: they lie on joints other parts share."""
+def parts_seen(masks: list[np.ndarray], keypoints: np.ndarray) -> dict[str, tuple[float, float]]:
+    """For each part of :data:`SEEN_PARTS`, over frames (``[H, W]`` person masks, non-zero on the person, and their
+    ``[N, 25, 3]`` poses in the same pixels): the share whose pose has the part's bones, and the share of those
+    whose mask holds the middle of each bone (the half of 9 points along its middle 60 %; NaN without such
+    frames). The bones' ends are left out: they lie on joints other parts share."""
     along = np.linspace(0.2, 0.8, 9)[:, None]
-    seen: dict[str, float] = {}
+    seen: dict[str, tuple[float, float]] = {}
     for part, bones in SEEN_PARTS.items():
         shown = []
         for mask, kp in zip(masks, np.asarray(keypoints, np.float32)):
@@ -446,7 +449,7 @@ def parts_seen(masks: list[np.ndarray], keypoints: np.ndarray) -> dict[str, floa
             inside = (points[:, 0] >= 0) & (points[:, 0] < mask.shape[1]) & (points[:, 1] >= 0) & (
                 points[:, 1] < mask.shape[0])
             shown.append(((mask[y, x] > 127) & inside).mean() >= 0.5)
-        seen[part] = float(np.mean(shown)) if shown else math.nan
+        seen[part] = (len(shown) / max(len(masks), 1), float(np.mean(shown)) if shown else math.nan)
     return seen
 
 
@@ -731,8 +734,10 @@ class FrameBank:
 
     def hidden_parts(self) -> list[str]:
         """The parts of :data:`SEEN_PARTS` the target video shows in fewer than :data:`SEEN_SHARE` of the bank's
-        frames where its pose places them (hidden behind something, or outside the frame)."""
-        return [part for part, share in self.seen.items() if share < SEEN_SHARE]
+        frames where its pose places them (hidden behind something), or whose bones its poses hardly have (outside
+        the picture: fewer than :data:`MIN_POSED_SHARE` of the frames)."""
+        return [part for part, (posed, shown) in self.seen.items()
+                if posed < MIN_POSED_SHARE or shown < SEEN_SHARE]
 
     def source(self, t: int) -> Source:
         """Frame ``t`` cut into parts (cached)."""

@@ -415,3 +415,8 @@ def test_parts_the_video_hides_in_most_frames_are_named():
     bank = FrameBank(frames, np.stack([behind, behind, behind, mask]), np.stack([kp] * 4), np.arange(4))
     assert bank.hidden_parts() == ["hips", "right thigh", "left thigh"]
     assert FrameBank(frames, np.stack([mask] * 4), np.stack([kp] * 4), np.arange(4)).hidden_parts() == []
+    # Filmed from the waist up: the pose has no legs.
+    upper = kp.copy()
+    upper[[J[n] for n in ("RKnee", "RAnkle", "LKnee", "LAnkle", "RBigToe", "LBigToe", "RHeel", "LHeel")], 2] = 0.0
+    bank = FrameBank(frames, np.stack([mask] * 4), np.stack([upper] * 4), np.arange(4))
+    assert bank.hidden_parts() == ["right thigh", "right shin", "left thigh", "left shin"]
