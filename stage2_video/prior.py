@@ -745,11 +745,12 @@ class FrameBank:
             self._sources.move_to_end(t)
             return self._sources[t]
         kp = self.keypoints[t]
-        mask = np.asarray(self.masks[t]) > 127
-        labels = part_labels(np.asarray(self.masks[t]), kp)
+        mask = np.asarray(self.masks[t])
+        labels = part_labels(mask, kp)
         image = clean_strays(np.asarray(self.frames[t]), labels, self.colours)
         torso_image, torso = fill_torso(image, labels, kp)
-        leak = float((labels[mask] == NO_PART).mean()) if mask.any() else 0.0
+        person = mask > 127
+        leak = float((labels[person] == NO_PART).mean()) if person.any() else 0.0
         source = Source(image, torso_image, labels, torso, kp, leak=leak)
         self._sources[t] = source
         if len(self._sources) > self._cache_size:
