@@ -3,8 +3,10 @@ which maps -q/-v to a level) and the web page's job workers (:mod:`apps.web.task
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import sys
+from collections.abc import Iterator
 from typing import TextIO
 
 # The project's top-level packages: their loggers follow -q/-v; other libraries' stay at WARNING.
@@ -43,3 +45,28 @@ def configure_logging(level: int, stream: TextIO | None = None) -> None:
     root.addHandler(handler)
     for name in PACKAGES:
         logging.getLogger(name).setLevel(level)
+
+
+class _Warnings(logging.Handler):
+    """Keeps the text of the tool's own warnings (not errors: a job reports its error apart)."""
+
+    def __init__(self) -> None:
+        super().__init__(logging.WARNING)
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        if record.levelno == logging.WARNING and record.name.split(".")[0] in PACKAGES:
+            self.messages.append(record.getMessage())
+
+
+@contextlib.contextmanager
+def kept_warnings() -> Iterator[list[str]]:
+    """The list, filled while inside, of the warnings the project's packages log (a web job hands them to the page
+    beside its outputs: "the target video hides the person's hips", which the terminal shows as they come)."""
+    handler = _Warnings()
+    root = logging.getLogger()
+    root.addHandler(handler)
+    try:
+        yield handler.messages
+    finally:
+        root.removeHandler(handler)

@@ -2,9 +2,10 @@
 
 ```
 DATA/jobs/<id>/job.json     kind, title, params, state (queued -> running -> done | failed | cancelled |
-                            interrupted), times, error sentence, outputs (name -> path relative to DATA), command
+                            interrupted), times, error sentence, outputs (name -> path relative to DATA), command,
+                            warnings (sentences the tool logged as warnings)
 DATA/jobs/<id>/log.txt      everything the worker logged, progress lines included
-DATA/jobs/<id>/result.json  what the worker hands back: its outputs or an error sentence
+DATA/jobs/<id>/result.json  what the worker hands back: its outputs or an error sentence, and its warnings
 DATA/jobs/<id>/out/         the job's own files (deleted when the job is cancelled or interrupted)
 DATA/server.lock            held (flock) by the one server using the folder; holds its process id
 ```
@@ -129,7 +130,7 @@ class JobStore:
         job_id = f"{time.strftime('%Y%m%d-%H%M%S')}-{uuid.uuid4().hex[:6]}"
         job = {"id": job_id, "kind": kind, "title": title, "params": params, "command": command,
                "state": "queued", "created": time.time(), "started": None, "finished": None, "error": None,
-               "outputs": {}, "info": {}}
+               "outputs": {}, "info": {}, "warnings": []}
         with self._lock:
             (self.root / job_id).mkdir()
             self._write(job)
@@ -201,12 +202,12 @@ class JobStore:
         return self.get(job_id)
 
     def _end(self, job: dict, state: str, error: str | None = None, outputs: dict | None = None,
-             info: dict | None = None) -> None:
+             info: dict | None = None, warnings: list[str] | None = None) -> None:
         with self._lock:
             if state in ("cancelled", "interrupted"):
                 shutil.rmtree(self.root / job["id"] / OUT, ignore_errors=True)
             job.update(state=state, finished=time.time(), error=error, outputs=outputs or {},
-                       info={**job.get("info", {}), **(info or {})})
+                       info={**job.get("info", {}), **(info or {})}, warnings=warnings or [])
             self._write(job)
 
     def _loop(self) -> None:
@@ -244,9 +245,10 @@ class JobStore:
         if self._cancelled.pop(job_id, None) is not None:
             self._end(job, "cancelled")
         elif result is not None and result.get("error") is None:
-            self._end(job, "done", outputs=result.get("outputs"), info=result.get("info"))
+            self._end(job, "done", outputs=result.get("outputs"), info=result.get("info"),
+                      warnings=result.get("warnings"))
         elif result is not None:
-            self._end(job, "failed", error=result["error"])
+            self._end(job, "failed", error=result["error"], warnings=result.get("warnings"))
         else:
             self._end(job, "failed", error=f"The job's worker stopped unexpectedly (exit status "
                                            f"{process.exitcode}); its log has the details.")

@@ -24,7 +24,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from apps.logs import configure_logging
+from apps.logs import configure_logging, kept_warnings
 from apps.web.job_folder import JOB_FILE, LOG_FILE, OUT, RESULT_FILE, write_json
 from apps.web.uploads import user_message
 from dancesynth.core import progress
@@ -161,19 +161,20 @@ def run_job(job_dir: str, settings: dict) -> None:
     progress.LOG_INTERVAL_S = PROGRESS_INTERVAL_S
     job = json.loads((folder / JOB_FILE).read_text())
     data = Path(settings["data"])
-    try:
-        # Watched from here on: a server gone already ends the job at once, as a cancel, with its log line.
-        threading.Thread(target=_exit_with_parent, daemon=True).start()
-        outputs, info = TASKS[job["kind"]](job["params"], folder / OUT, settings)
-        result: dict = {"outputs": outputs, "info": info}
-    except KeyboardInterrupt:
-        logger.info("cancelled")
-        raise SystemExit(130) from None
-    except (DancesynthError, OSError) as e:
-        message = str(e) if isinstance(e, DancesynthError) else os_error_sentence(e)
-        logger.error(message)
-        result = {"error": user_message(message, data)}
-    except Exception as e:  # noqa: BLE001 - any other failure is reported in the page, its traceback in the log
-        traceback.print_exc()
-        result = {"error": f"The job failed unexpectedly ({type(e).__name__}: {e}); its log has the details."}
-    write_json(folder / RESULT_FILE, result)
+    with kept_warnings() as warnings:
+        try:
+            # Watched from here on: a server gone already ends the job at once, as a cancel, with its log line.
+            threading.Thread(target=_exit_with_parent, daemon=True).start()
+            outputs, info = TASKS[job["kind"]](job["params"], folder / OUT, settings)
+            result: dict = {"outputs": outputs, "info": info}
+        except KeyboardInterrupt:
+            logger.info("cancelled")
+            raise SystemExit(130) from None
+        except (DancesynthError, OSError) as e:
+            message = str(e) if isinstance(e, DancesynthError) else os_error_sentence(e)
+            logger.error(message)
+            result = {"error": user_message(message, data)}
+        except Exception as e:  # noqa: BLE001 - any other failure is reported in the page, its traceback in the log
+            traceback.print_exc()
+            result = {"error": f"The job failed unexpectedly ({type(e).__name__}: {e}); its log has the details."}
+    write_json(folder / RESULT_FILE, {**result, "warnings": [user_message(w, data) for w in warnings]})

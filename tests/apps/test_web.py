@@ -327,3 +327,19 @@ def test_demo_tab_runs_the_demo_and_shows_its_dance_and_summary(server, page, sh
     page.wait_for_function("v => v.readyState >= 2 && v.duration > 0", arg=handle, timeout=30_000)
     assert card.locator("a.download").get_attribute("href").endswith("dance.mp4?download=1")
     _screenshot(page, root, shots / "demo.png")
+
+
+def test_a_jobs_warnings_show_on_its_card(server, page):
+    """What the tool logs as a warning while a job runs (a target video that hides the person's hips) is handed
+    back with the job (tests/apps/test_web_jobs.py) and shown on its card, also after the job ended."""
+    _, root, entry = server
+    folder = root / "data" / "jobs" / "19700101-000000-warned"
+    folder.mkdir()
+    sentence = "The target video shows the person's hips in fewer than half of its frames."
+    (folder / "job.json").write_text(json.dumps({
+        "id": folder.name, "kind": "train", "title": "a training", "params": {"entry": entry.name}, "command": None,
+        "state": "done", "created": 0.0, "started": 1.0, "finished": 2.0, "error": None, "outputs": {}, "info": {},
+        "warnings": [sentence]}))
+    page.reload()
+    card = page.locator(f".job[data-job='{folder.name}']")
+    expect(card.locator(".warnings li")).to_have_text([sentence])

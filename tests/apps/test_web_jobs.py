@@ -3,6 +3,7 @@ browser; the last tests run real `dancesynth serve` processes and a job's worker
 
 import http.client
 import json
+import logging
 import os
 import shlex
 import signal
@@ -19,6 +20,7 @@ from web_client import FORM, PAGE, call, form, wav
 import apps.demo
 from apps.cli import build_parser, main
 from apps.demo import DemoPlan
+from apps.logs import kept_warnings
 from apps.requests import DanceRequest
 from apps.web.jobs import JobStore, parse_progress
 from apps.web.server import create_app
@@ -47,6 +49,35 @@ def test_a_job_left_running_by_a_stopped_server_becomes_interrupted_and_loses_it
         assert seen["progress"]["percent"] == 25 and seen["progress"]["left"] == "1m30s"
     finally:
         restarted.stop()
+
+
+class _Ended:
+    """A worker process that has ended (what JobStore checks of one)."""
+
+    exitcode = 0
+
+    def is_alive(self) -> bool:
+        return False
+
+    def join(self, timeout: float | None = None) -> None:
+        return None
+
+
+@pytest.mark.parametrize("result", [{"outputs": {}, "info": {}}, {"error": "The song is silent."}])
+def test_the_warnings_a_worker_logs_are_handed_back_with_its_job(tmp_path, result):
+    with kept_warnings() as warnings:
+        logging.getLogger("stage2_video.training_data").warning("The target video shows the person's hips rarely.")
+        logging.getLogger("stage2_video.training_data").error("an error is the job's error, not a warning")
+        logging.getLogger("urllib3").warning("another library's warning stays in the log")
+    assert warnings == ["The target video shows the person's hips rarely."]
+    store = JobStore(tmp_path, {})
+    job = store.create("dance", "a dance", {})
+    assert store.get(job["id"])["warnings"] == []
+    (tmp_path / "jobs" / job["id"] / "result.json").write_text(json.dumps({**result, "warnings": warnings}))
+    store._running = (job["id"], _Ended())
+    store._check_running()
+    ended = store.get(job["id"])
+    assert ended["state"] == ("failed" if "error" in result else "done") and ended["warnings"] == warnings
 
 
 def test_progress_is_the_latest_progress_line():

@@ -187,7 +187,8 @@ function card(job) {
     el("header", {}, el("strong", { text: job.title }), el("span", { class: "state" }),
       el("button", { type: "button", class: "cancel", text: "Cancel", onclick: () => post(`/api/jobs/${job.id}/cancel`).then(refreshJobs) })),
     el("progress", { max: 100 }), el("p", { class: "progress-text" }), el("p", { class: "line" }),
-    el("p", { class: "error", role: "alert" }), el("div", { class: "live" }), el("div", { class: "outputs" }));
+    el("p", { class: "error", role: "alert" }), el("ul", { class: "warnings", role: "status" }), el("div", { class: "live" }),
+    el("div", { class: "outputs" }));
   if (job.command) node.append(el("details", job.kind === "dance" ? { open: "" } : {}, el("summary", { text: "Equivalent command" }),
     el("code", { class: "command", text: job.command })));
   return { node, rendered: null, liveAt: 0 };
@@ -205,6 +206,9 @@ function updateCard(c, job) {
   const line = job.state === "running" && job.last_line !== job.progress?.line ? job.last_line : "";
   $(".line", n).textContent = line || "";
   $(".error", n).textContent = job.error || "";
+  const warnings = $(".warnings", n);
+  if (warnings.childElementCount !== (job.warnings || []).length)
+    warnings.replaceChildren(...(job.warnings || []).map(text => el("li", { text })));
   if (job.kind === "train" && Date.now() - c.liveAt > 3000 && job.state !== "queued") {
     c.liveAt = Date.now();
     if (job.state === "running" || !c.rendered) showTraining(c, job);
