@@ -721,9 +721,10 @@ class FrameBank:
         self.places = None if scene is None else scene_places(np.asarray(scene)[self.members])
         self.reference = reference_lengths(self.keypoints[self.members])
         sample = self.members[np.linspace(0, len(self.members) - 1, min(COLOUR_FRAMES, len(self.members))).astype(int)]
+        sample_masks = [np.asarray(self.masks[t]) for t in sample]
         self.colours = part_colours([np.asarray(self.frames[t]) for t in sample],
-                                    [part_labels(np.asarray(self.masks[t]), self.keypoints[t]) for t in sample])
-        self.seen = parts_seen([np.asarray(self.masks[t]) for t in sample], self.keypoints[sample])
+                                    [part_labels(mask, self.keypoints[t]) for mask, t in zip(sample_masks, sample)])
+        self.seen = parts_seen(sample_masks, self.keypoints[sample])
         self._sources: OrderedDict[int, Source] = OrderedDict()
         # Members found to be failed segmentations when first cut (:data:`MASK_LEAK_LIMIT`); never retrieved again.
         self.leaking = np.zeros(len(self.members), bool)
