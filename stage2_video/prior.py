@@ -90,6 +90,11 @@ OCCLUSION_REACH = {"core": 0.3, "right leg": 0.2, "left leg": 0.2}
 OCCLUDED_BONES = {"core": ((J["Neck"], J["Nose"]), (J["Neck"], J["MidHip"])),
                   "right leg": ((J["RHip"], J["RKnee"]), (J["RKnee"], J["RAnkle"])),
                   "left leg": ((J["LHip"], J["LKnee"]), (J["LKnee"], J["LAnkle"]))}
+# Retrieval cost of a bank frame whose pose puts a group's limb (or the spine) wholly off the person's mask, in
+# proportion to the share off it: BlazePose misplaces a limb (the dancer's dark forearm against her suit, an arm
+# held out read at the hip), and cut along that bone the part holds the backdrop or another part. Chosen on the
+# training range (docs/methods/warped_prior.md).
+OFF_MASK_COST = 2.0
 # The person's colours per part are counted in bins of this many levels a channel, over this many bank frames.
 COLOUR_LEVELS = 8
 COLOUR_FRAMES = 128
@@ -187,6 +192,8 @@ GROUP_BONES: dict[str, tuple[int, ...]] = {
     "core": (0, 1, 2, 3, 4, 5), "right arm": (6, 7), "left arm": (8, 9), "right leg": (10, 11), "left leg": (12, 13),
 }
 GROUPS = tuple(GROUP_BONES)
+# The bones a group's parts are cut along (its bones besides the facing ones).
+GROUP_OWN_BONES = {group: tuple(b for b in bones if b not in FACING_BONES) for group, bones in GROUP_BONES.items()}
 # A limb (or the torso, along its spine) may stretch to at most this factor of the size ratio across it (a
 # foreshortened source limb).
 MAX_STRETCH = 2.5
@@ -352,8 +359,7 @@ def group_costs(bank: Description, query: np.ndarray) -> dict[str, np.ndarray]:
     per_bone = np.where(present, ((vectors - q_vec) ** 2).sum(-1), MISSING_COST) * q_present  # [N, B]
     turn = np.where(face & q_face, ((offsets - q_offsets) ** 2).sum(-1), 0.0).sum(1)
     shared = per_bone[:, list(FACING_BONES)].sum(1) + FACE_COST * (face != q_face).sum(1) + HEAD_TURN_COST * turn
-    costs = {g: shared + per_bone[:, [b for b in bones if b not in FACING_BONES]].sum(1)
-             for g, bones in GROUP_BONES.items()}
+    costs = {g: shared + per_bone[:, list(bones)].sum(1) for g, bones in GROUP_OWN_BONES.items()}
     costs["core"] = costs["core"] + TORSO_ARM_COST * per_bone[:, list(UPPER_ARM_BONES)].sum(1)
     return costs
 
@@ -431,26 +437,50 @@ def _detached(region: np.ndarray, on_lines: np.ndarray) -> np.ndarray:
     return region & ~np.isin(pieces, anchored)
 
 
+def bones_on_mask(mask: np.ndarray, keypoints: np.ndarray, bones: tuple[tuple[int, int], ...]) -> np.ndarray:
+    """``[len(bones)]`` share of 9 points along the middle 60 % of each bone of a ``[25, 3]`` pose that lie on the
+    ``[H, W]`` person mask (non-zero on the person; outside the picture counts as off it); NaN where the pose lacks
+    the bone. The bones' ends are left out: they lie on joints other parts share."""
+    along = np.linspace(0.2, 0.8, 9)[:, None]
+    kp = np.asarray(keypoints, np.float32)
+    shares = np.full(len(bones), np.nan)
+    for i, (a, b) in enumerate(bones):
+        if kp[a, 2] < MIN_CONFIDENCE or kp[b, 2] < MIN_CONFIDENCE:
+            continue
+        points = kp[a, :2] + along * (kp[b, :2] - kp[a, :2])
+        x = np.clip(np.round(points[:, 0]).astype(int), 0, mask.shape[1] - 1)
+        y = np.clip(np.round(points[:, 1]).astype(int), 0, mask.shape[0] - 1)
+        inside = (points[:, 0] >= 0) & (points[:, 0] < mask.shape[1]) & (points[:, 1] >= 0) & (
+            points[:, 1] < mask.shape[0])
+        shares[i] = ((mask[y, x] > 127) & inside).mean()
+    return shares
+
+
 def parts_seen(masks: list[np.ndarray], keypoints: np.ndarray) -> dict[str, tuple[float, float]]:
     """For each part of :data:`SEEN_PARTS`, over frames (``[H, W]`` person masks, non-zero on the person, and their
     ``[N, 25, 3]`` poses in the same pixels): the share whose pose has the part's bones, and the share of those
-    whose mask holds the middle of each bone (the half of 9 points along its middle 60 %; NaN without such
-    frames). The bones' ends are left out: they lie on joints other parts share."""
-    along = np.linspace(0.2, 0.8, 9)[:, None]
+    whose mask holds the middle of each bone (:func:`bones_on_mask`, half of the points over the part's bones;
+    NaN without such frames)."""
     seen: dict[str, tuple[float, float]] = {}
     for part, bones in SEEN_PARTS.items():
-        shown = []
-        for mask, kp in zip(masks, np.asarray(keypoints, np.float32)):
-            if not all(kp[a, 2] >= MIN_CONFIDENCE and kp[b, 2] >= MIN_CONFIDENCE for a, b in bones):
-                continue
-            points = np.concatenate([kp[a, :2] + along * (kp[b, :2] - kp[a, :2]) for a, b in bones])
-            x = np.clip(np.round(points[:, 0]).astype(int), 0, mask.shape[1] - 1)
-            y = np.clip(np.round(points[:, 1]).astype(int), 0, mask.shape[0] - 1)
-            inside = (points[:, 0] >= 0) & (points[:, 0] < mask.shape[1]) & (points[:, 1] >= 0) & (
-                points[:, 1] < mask.shape[0])
-            shown.append(((mask[y, x] > 127) & inside).mean() >= 0.5)
+        shares = [bones_on_mask(mask, kp, bones) for mask, kp in zip(masks, keypoints)]
+        shown = [share.mean() >= 0.5 for share in shares if not np.isnan(share).any()]
         seen[part] = (len(shown) / max(len(masks), 1), float(np.mean(shown)) if shown else math.nan)
     return seen
+
+
+def off_mask_costs(masks: np.ndarray, keypoints: np.ndarray, members: np.ndarray) -> dict[str, np.ndarray]:
+    """Per group, ``[N]`` retrieval cost of the bank frames ``members`` (of ``[T, H, W]`` masks and ``[T, 25, 3]``
+    poses in bank pixels) whose pose puts the group's limb off the person's mask: :data:`OFF_MASK_COST` times the
+    share of its worst bone's middle off the mask (:func:`bones_on_mask`; 0 for bones the pose lacks)."""
+    bones = {group: tuple(DESCRIPTOR_BONES[b] for b in own) for group, own in GROUP_OWN_BONES.items()}
+    costs = {group: np.zeros(len(members), np.float32) for group in bones}
+    for i, t in enumerate(members):
+        mask, kp = np.asarray(masks[t]), keypoints[t]
+        for group, own in bones.items():
+            on = bones_on_mask(mask, kp, own)
+            costs[group][i] = OFF_MASK_COST * (1.0 - np.nanmin(on)) if not np.isnan(on).all() else 0.0
+    return costs
 
 
 def colour_index(image: np.ndarray) -> np.ndarray:
@@ -725,6 +755,7 @@ class FrameBank:
         self.colours = part_colours([np.asarray(self.frames[t]) for t in sample],
                                     [part_labels(mask, self.keypoints[t]) for mask, t in zip(sample_masks, sample)])
         self.seen = parts_seen(sample_masks, self.keypoints[sample])
+        self.off_mask = off_mask_costs(self.masks, self.keypoints, self.members)
         self._sources: OrderedDict[int, Source] = OrderedDict()
         # Members found to be failed segmentations when first cut (:data:`MASK_LEAK_LIMIT`); never retrieved again.
         self.leaking = np.zeros(len(self.members), bool)
@@ -785,7 +816,7 @@ class FrameBank:
             if not allowed.any():  # a bank shorter than the window: keep the farthest frames
                 distance = np.abs(self.members - (exclude[0] + exclude[1] - 1) / 2)
                 allowed = distance == distance.max()
-        costs = {group: cost + occlusion[group] for group, cost in costs.items()}
+        costs = {group: cost + occlusion[group] + self.off_mask[group] for group, cost in costs.items()}
         while True:
             usable = allowed & ~self.leaking
             fallback = not usable.any()  # every allowed frame's mask failed: a leaking part rather than none

@@ -12,6 +12,7 @@ from stage2_video.prior import (
     GROUPS,
     HAND_PARTS,
     NO_PART,
+    OFF_MASK_COST,
     PARTS,
     TORSO,
     TORSO_CORNERS,
@@ -21,6 +22,7 @@ from stage2_video.prior import (
     body_scale,
     bone_affine,
     fill_torso,
+    off_mask_costs,
     part_labels,
     reference_lengths,
     similarity,
@@ -420,3 +422,18 @@ def test_parts_the_video_hides_in_most_frames_are_named():
     upper[[J[n] for n in ("RKnee", "RAnkle", "LKnee", "LAnkle", "RBigToe", "LBigToe", "RHeel", "LHeel")], 2] = 0.0
     bank = FrameBank(frames, np.stack([mask] * 4), np.stack([upper] * 4), np.arange(4))
     assert bank.hidden_parts() == ["right thigh", "right shin", "left thigh", "left shin"]
+
+
+def test_a_limb_is_not_taken_from_a_frame_whose_pose_puts_it_off_the_person():
+    # Two frames alike by pose (retrieval ignores position, so they tie and the first wins); frame 0's mask lacks
+    # the left arm where its pose has it (a misread limb, as BlazePose reads a dark forearm against a dark suit).
+    kp = standing_pose()
+    image, mask = textured_person(kp)
+    armless = mask.copy()
+    armless[:, 76:] = 0
+    poses = np.stack([kp, kp + np.float32([0.5, 0.5, 0.0])])
+    bank = FrameBank(np.stack([image, image]), np.stack([armless, mask]), poses, np.arange(2))
+    chosen = bank.retrieve(kp)
+    assert chosen["left arm"] == 1
+    assert chosen["right arm"] == chosen["right leg"] == chosen["left leg"] == chosen["core"] == 0
+    assert (off_mask_costs(bank.masks, poses, np.arange(2))["left arm"] == [OFF_MASK_COST, 0.0]).all()
