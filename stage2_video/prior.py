@@ -11,10 +11,11 @@ retrieval). Here, for every pose to render:
    parts (head and torso, each arm, each leg) takes its own nearest frame, with the bones that face the camera
    (shoulders, hips, face) and the head's turn in every group's cost so no part comes from a frame facing the other
    way, and frames whose hands lie on the group's parts costing more (an arm too, when its hand lies on the head,
-   torso or a leg where the pose's does not: it would carry their pixels away). A choice is kept from frame to frame
-   while it stays nearly as good (no flicker), and frames within ``exclude`` of the frame being learnt are never
-   returned (the network must learn to repair a warp, not to copy its input), nor frames whose person mask spreads
-   far beyond the body (a failed segmentation, :data:`MASK_LEAK_LIMIT`).
+   torso or a leg where the pose's does not: it would carry their pixels away), as do frames whose pose puts the
+   group's limb off the person's mask (a misread limb: cut along it, the part holds the backdrop). A choice is
+   kept from frame to frame while it stays nearly as good (no flicker), and frames within ``exclude`` of the frame
+   being learnt are never returned (the network must learn to repair a warp, not to copy its input), nor frames
+   whose person mask spreads far beyond the body (a failed segmentation, :data:`MASK_LEAK_LIMIT`).
 2. **Parts** (:func:`part_labels`): the source frame's person mask (:mod:`stage2_video.masks`) is split into head,
    torso, upper arms, forearms, hands, thighs, shins and feet by the nearest drawn bone (a hand belongs to
    its arm even where it rests on the torso or a thigh); a piece of a part's region apart from the pixels its
