@@ -143,6 +143,9 @@ class Part:
             and a hand near it go by distance alone.
         fit: for a rigid part, joints whose least-squares rotation and translation between the poses move it (at
             least ``MIN_FIT_JOINTS`` seen in both; fewer: turned with ``bone``), scaled like the torso.
+        keep: torso lengths from its lines beyond which it yields a pixel to any part without such a limit that
+            reaches it: a forearm or hand hanging beside the body would otherwise take a slab of the hip or thigh
+            along (a dark flap swinging with the arm in a dance), since those yield to it by their ``bias``.
     """
 
     name: str
@@ -154,9 +157,14 @@ class Part:
     group: str
     bias: float = 0.0
     fit: tuple[int, ...] = ()
+    keep: float = math.inf
 
 
 _R_FOREARM, _L_FOREARM = (J["RElbow"], J["RWrist"]), (J["LElbow"], J["LWrist"])
+# Forearms and hands keep pixels other parts reach within this many torso lengths of their lines (Part.keep; a
+# forearm is about 0.16 wide). Chosen by the demo's dance against the synthetic truth and by eye on the dancer's
+# dance (docs/methods/warped_prior.md).
+ARM_KEEP = 0.1
 # Back to front: the order parts are painted in.
 PARTS: tuple[Part, ...] = (
     Part("torso", ((J["Neck"], J["MidHip"]),), None, False, 0.0, 0.25, "core", bias=0.15),
@@ -178,13 +186,15 @@ PARTS: tuple[Part, ...] = (
          "right arm"),
     Part("left upper arm", ((J["LShoulder"], J["LElbow"]),), (J["LShoulder"], J["LElbow"]), False, 0.0, 0.25,
          "left arm"),
-    Part("right forearm", (_R_FOREARM,), _R_FOREARM, False, 0.0, 0.25, "right arm"),
-    Part("left forearm", (_L_FOREARM,), _L_FOREARM, False, 0.0, 0.25, "left arm"),
-    Part("right hand", (), _R_FOREARM, True, 0.35, 0.25, "right arm"),
-    Part("left hand", (), _L_FOREARM, True, 0.35, 0.25, "left arm"),
+    Part("right forearm", (_R_FOREARM,), _R_FOREARM, False, 0.0, 0.25, "right arm", keep=ARM_KEEP),
+    Part("left forearm", (_L_FOREARM,), _L_FOREARM, False, 0.0, 0.25, "left arm", keep=ARM_KEEP),
+    Part("right hand", (), _R_FOREARM, True, 0.35, 0.25, "right arm", keep=ARM_KEEP),
+    Part("left hand", (), _L_FOREARM, True, 0.35, 0.25, "left arm", keep=ARM_KEEP),
 )
 TORSO = 0
 HAND_PARTS = tuple(i for i, part in enumerate(PARTS) if part.name.endswith(" hand"))
+# Forearms and hands: they keep only pixels near their lines where other parts reach too (Part.keep).
+ARM_ENDS = tuple(i for i, part in enumerate(PARTS) if part.keep < math.inf)
 # The torso quadrilateral: its pixels are at distance 0 from the torso.
 TORSO_CORNERS = (J["RShoulder"], J["LShoulder"], J["LHip"], J["RHip"])
 TORSO_JOINTS = (J["Neck"], J["RShoulder"], J["LShoulder"], J["MidHip"], J["RHip"], J["LHip"])
@@ -404,6 +414,7 @@ def part_labels(mask: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
     shape = (y1 - y0, x1 - x0)
     distances = np.full((len(PARTS), *shape), np.inf, np.float32)
     drawn = np.zeros((len(PARTS), *shape), bool)
+    beyond_keep = np.zeros((len(PARTS), *shape), bool)
     corners = [j for j in TORSO_CORNERS if local[j, 2] >= MIN_CONFIDENCE]
     for i, part in enumerate(PARTS):
         lines = part_lines(part, local, torso)
@@ -413,7 +424,13 @@ def part_labels(mask: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
         d = cv2.distanceTransform(_segment_mask(shape, lines, polygon), cv2.DIST_L2, 3)
         distances[i] = np.where(d <= part.reach * torso, d + part.bias * torso, np.inf)
         drawn[i] = d == 0
+        beyond_keep[i] = d > part.keep * torso
     person = person[y0:y1, x0:x1]
+    unlimited = [i for i, part in enumerate(PARTS) if part.keep == math.inf]
+    reached_by_unlimited = np.isfinite(distances[unlimited]).any(0)
+    for i, part in enumerate(PARTS):
+        if part.keep < math.inf:
+            distances[i][beyond_keep[i] & reached_by_unlimited] = np.inf
     nearest = distances.argmin(0)
     for i in range(len(PARTS)):
         cut_off = _detached(person & (nearest == i), drawn[i])
@@ -647,13 +664,18 @@ class Source:
     layers: dict[int, tuple[int, int, np.ndarray] | None] = dataclasses.field(default_factory=dict, repr=False)
 
     def region(self, part: int) -> np.ndarray:
-        """``[H, W]`` bool: the pixels of part ``part``, grown by :data:`OVERLAP_PIXELS` over the person."""
+        """``[H, W]`` bool: the pixels of part ``part``, grown by :data:`OVERLAP_PIXELS` over the person, though not
+        over a forearm or hand (:data:`ARM_ENDS`: a glove's edge would stay behind on the hip when the hand moves
+        away)."""
         inside = self.torso if part == TORSO else self.labels == part
         if not inside.any():
             return inside
         kernel = np.ones((2 * OVERLAP_PIXELS + 1,) * 2, np.uint8)
         grown = cv2.dilate(inside.astype(np.uint8), kernel) > 0
-        return inside | (grown & ((self.labels != NO_PART) | self.torso))
+        over = (self.labels != NO_PART) | self.torso
+        if part not in ARM_ENDS:
+            over &= ~np.isin(self.labels, ARM_ENDS)
+        return inside | (grown & over)
 
     def layer(self, part: int) -> tuple[int, int, np.ndarray] | None:
         """Part ``part`` cut out of its box, cached (every pose warped from this frame moves the same cut):

@@ -437,3 +437,27 @@ def test_a_limb_is_not_taken_from_a_frame_whose_pose_puts_it_off_the_person():
     assert chosen["left arm"] == 1
     assert chosen["right arm"] == chosen["right leg"] == chosen["left leg"] == chosen["core"] == 0
     assert (off_mask_costs(bank.masks, poses, np.arange(2))["left arm"] == [OFF_MASK_COST, 0.0]).all()
+
+
+def test_a_hand_hanging_beside_the_thigh_leaves_the_thigh_behind_when_the_arm_rises():
+    # A thin left arm hangs against a wide hip and thigh (one mass, as the dancer's dark suit). Raised, the arm
+    # must carry its own width, not a slab of the thigh hanging below it.
+    kp = standing_pose()
+    kp[J["LElbow"], :2], kp[J["LWrist"], :2] = (80, 50), (80, 65)
+    image, _ = textured_person(kp)
+    mask = np.zeros((SIZE, SIZE), np.uint8)
+    point = {name: tuple(int(v) for v in kp[J[name], :2]) for name in J if kp[J[name], 2] > 0}
+    cv2.fillPoly(mask, [np.array([point[n] for n in ("RShoulder", "LShoulder", "LHip", "RHip")])], 255)
+    cv2.circle(mask, point["Nose"], 7, 255, -1)
+    for a, b, width in (("Neck", "Nose", 6), ("RHip", "RKnee", 18), ("LHip", "LKnee", 18), ("RKnee", "RAnkle", 10),
+                        ("LKnee", "LAnkle", 10), ("RShoulder", "RElbow", 4), ("RElbow", "RWrist", 4),
+                        ("LShoulder", "LElbow", 4), ("LElbow", "LWrist", 4)):
+        cv2.line(mask, point[a], point[b], 255, width)
+    raised = kp.copy()
+    raised[J["LElbow"], :2], raised[J["LWrist"], :2] = (92, 35), (108, 35)
+    _, alpha = warp_parts({g: source_of(image, mask, kp) for g in GROUPS}, raised, (SIZE, SIZE))
+    torso = float(np.linalg.norm(kp[J["Neck"], :2] - kp[J["MidHip"], :2]))
+    y, x = np.mgrid[:SIZE, :SIZE]
+    beside = x > kp[J["LShoulder"], 0] + 0.25 * torso  # the raised arm's side, clear of the torso
+    assert (alpha[beside & (np.abs(y - 35) <= 2)] > 0.5).sum() > 0  # the arm is there
+    assert (alpha[beside & (y > 35 + 0.25 * torso)] > 0.5).sum() == 0  # and nothing hangs from it
