@@ -18,11 +18,12 @@ retrieval). Here, for every pose to render:
    whose person mask spreads far beyond the body (a failed segmentation, :data:`MASK_LEAK_LIMIT`).
 2. **Parts** (:func:`part_labels`): the source frame's person mask (:mod:`stage2_video.masks`) is split into head,
    torso, upper arms, forearms, hands, thighs, shins and feet by the nearest drawn bone (a hand belongs to
-   its arm even where it rests on the torso or a thigh); a piece of a part's region apart from the pixels its
-   bone is drawn on (trousers beside a hand that rests on a thigh) goes to the next nearest part, so it does not
-   swing away with the part; torso pixels hidden by an arm are filled in from around them. Pixels outside the
-   hands coloured like the bank's hands and unlike their own part (a glove the pose put elsewhere) take the colour
-   of the part around them (:func:`clean_strays`).
+   its arm even where it rests on the torso or a thigh, though a forearm or hand keeps only a narrow band where
+   the torso or a leg reaches too, so a slab of hip does not swing away with it); a piece of a part's region apart
+   from the pixels its bone is drawn on (trousers beside a hand that rests on a thigh) goes to the next nearest
+   part, so it does not swing away with the part; torso pixels hidden by an arm are filled in from around them.
+   Pixels outside the hands coloured like the bank's hands and unlike their own part (a glove the pose put
+   elsewhere) take the colour of the part around them (:func:`clean_strays`).
 3. **Warping** (:func:`warp_parts`): each pose's size is measured by its longest bones against the bank's
    (:func:`body_scale`: foreshortening only shortens a bone), and the ratio of the two sizes scales every part.
    The torso is stretched along its spine (neck to mid-hip) onto the target's and scaled by that ratio across it;
