@@ -196,6 +196,7 @@ TORSO = 0
 HAND_PARTS = tuple(i for i, part in enumerate(PARTS) if part.name.endswith(" hand"))
 # Forearms and hands: they keep only pixels near their lines where other parts reach too (Part.keep).
 ARM_ENDS = tuple(i for i, part in enumerate(PARTS) if part.keep < math.inf)
+_UNLIMITED = [i for i in range(len(PARTS)) if i not in ARM_ENDS]
 # The torso quadrilateral: its pixels are at distance 0 from the torso.
 TORSO_CORNERS = (J["RShoulder"], J["LShoulder"], J["LHip"], J["RHip"])
 TORSO_JOINTS = (J["Neck"], J["RShoulder"], J["LShoulder"], J["MidHip"], J["RHip"], J["LHip"])
@@ -415,7 +416,7 @@ def part_labels(mask: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
     shape = (y1 - y0, x1 - x0)
     distances = np.full((len(PARTS), *shape), np.inf, np.float32)
     drawn = np.zeros((len(PARTS), *shape), bool)
-    beyond_keep = np.zeros((len(PARTS), *shape), bool)
+    beyond_keep: dict[int, np.ndarray] = {}
     corners = [j for j in TORSO_CORNERS if local[j, 2] >= MIN_CONFIDENCE]
     for i, part in enumerate(PARTS):
         lines = part_lines(part, local, torso)
@@ -425,13 +426,12 @@ def part_labels(mask: np.ndarray, keypoints: np.ndarray) -> np.ndarray:
         d = cv2.distanceTransform(_segment_mask(shape, lines, polygon), cv2.DIST_L2, 3)
         distances[i] = np.where(d <= part.reach * torso, d + part.bias * torso, np.inf)
         drawn[i] = d == 0
-        beyond_keep[i] = d > part.keep * torso
+        if i in ARM_ENDS:
+            beyond_keep[i] = d > part.keep * torso
     person = person[y0:y1, x0:x1]
-    unlimited = [i for i, part in enumerate(PARTS) if part.keep == math.inf]
-    reached_by_unlimited = np.isfinite(distances[unlimited]).any(0)
-    for i, part in enumerate(PARTS):
-        if part.keep < math.inf:
-            distances[i][beyond_keep[i] & reached_by_unlimited] = np.inf
+    reached_by_others = np.isfinite(distances[_UNLIMITED]).any(0)
+    for i, beyond in beyond_keep.items():
+        distances[i][beyond & reached_by_others] = np.inf
     nearest = distances.argmin(0)
     for i in range(len(PARTS)):
         cut_off = _detached(person & (nearest == i), drawn[i])
@@ -673,10 +673,15 @@ class Source:
             return inside
         kernel = np.ones((2 * OVERLAP_PIXELS + 1,) * 2, np.uint8)
         grown = cv2.dilate(inside.astype(np.uint8), kernel) > 0
-        over = (self.labels != NO_PART) | self.torso
-        if part not in ARM_ENDS:
-            over &= ~np.isin(self.labels, ARM_ENDS)
-        return inside | (grown & over)
+        person, clear_of_arm_ends = self._overlap
+        return inside | (grown & (person if part in ARM_ENDS else clear_of_arm_ends))
+
+    @functools.cached_property
+    def _overlap(self) -> tuple[np.ndarray, np.ndarray]:
+        """The ``[H, W]`` bool pixels a part may grow over: the person's, and the person's but its forearms' and
+        hands' (each part's region is cut once, but all of them share these)."""
+        person = (self.labels != NO_PART) | self.torso
+        return person, person & ~np.isin(self.labels, ARM_ENDS)
 
     def layer(self, part: int) -> tuple[int, int, np.ndarray] | None:
         """Part ``part`` cut out of its box, cached (every pose warped from this frame moves the same cut):
