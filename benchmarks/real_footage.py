@@ -305,7 +305,9 @@ def main() -> None:
                     choices=("plate", "warp", "trained", "today", "real"))
     ap.add_argument("--dance-seconds", type=float, default=20.0)
     ap.add_argument("--sheets", type=Path, default=REPO / "docs" / "real_footage")
-    ap.add_argument("--dev-step", type=int, default=6, help="dev: score every this many training frames")
+    ap.add_argument("--dev-step", type=int, default=1,
+                    help="dev: score every this many training frames (BlazePose reads the scored frames as a video, "
+                         "so a sparser one moves PCK: keep one step for every comparison)")
     args = ap.parse_args()
     if args.command == "fetch":
         fetch(args.cache)
