@@ -36,6 +36,8 @@ from stage2_video.synthetic_person import appearance_preset, write_person_video
 from stage2_video.training_data import rendered_checkpoint
 
 logger = logging.getLogger(__name__)
+# The synthetic target's look (stage2_video.synthetic_person); benchmarks draw the truth of its dances in it.
+DEMO_LOOK = "red_tee"
 
 @dataclass(frozen=True)
 class DemoPlan:
@@ -124,7 +126,7 @@ def run_demo(out: str | os.PathLike = "demo_output", minutes: float = 15.0, seed
         s = plan.target_size / seq.height
         seq = PoseSequence(seq.keypoints * (s, s, 1), seq.fps, round(seq.width * s), plan.target_size)
         seq.save(target_poses)
-        write_person_video(seq, target_video, appearance_preset("red_tee"))
+        write_person_video(seq, target_video, appearance_preset(DEMO_LOOK))
     step("synthetic target video")
 
     video_run = out / "runs" / "video"

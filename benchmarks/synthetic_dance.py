@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from apps.demo import run_demo
+from apps.demo import DEMO_LOOK, run_demo
 from apps.pipeline import dance
 from apps.requests import DanceRequest
 from dancesynth.core.checkpoint import has_checkpoint
@@ -52,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     frames = list(read_frames(video))
     target = PoseSequence.load(args.out / "target" / "target_poses.npz")
     size = (frames[0].shape[1], frames[0].shape[0])
-    truth = render_person(made.poses, appearance_preset("red_tee"), size, body_scale(target))
+    truth = render_person(made.poses, appearance_preset(DEMO_LOOK), size, body_scale(target))
     scores = np.array([box_scores(frame, real, kp) for frame, real, kp in zip(frames, truth, made.poses.keypoints)])
     lowest = np.sort(scores[:, 0])[:LOWEST].mean()
     print(f"{len(scores)} frames of {args.song} (seed {args.seed}) against the synthetic truth: box SSIM "
