@@ -110,6 +110,19 @@ def output_file(text: str) -> str:
     return text
 
 
+# What a video output holds (H.264 in an MP4 container, dancesynth.core.media.VideoWriter) and the names that say so.
+VIDEO_SUFFIXES = (".mp4", ".m4v", ".mov")
+
+
+def output_video(text: str) -> str:
+    """:func:`output_file` for a video: its name must end in one of :data:`VIDEO_SUFFIXES`, since an MP4 is what is
+    written (under ``.webm``, ``.gif`` or ``.avi`` players would refuse it)."""
+    output_file(text)
+    if Path(text).suffix.lower() not in VIDEO_SUFFIXES:
+        raise argparse.ArgumentTypeError(f"{text} would hold an MP4 video; give a name ending in .mp4")
+    return text
+
+
 def output_folder(text: str) -> str:
     """A folder to create or write into: not a file, a device, a named pipe or a socket, and its nearest existing
     folder may be written to. (That it neither is nor holds one of the command's inputs is checked by

@@ -32,6 +32,7 @@ from apps.arguments import (
     non_negative_int,
     output_file,
     output_folder,
+    output_video,
     positive_float,
     positive_int,
     video_height,
@@ -233,8 +234,9 @@ THREADS = Option("CPU threads for torch (default: torch's choice; 1 is faster on
 HEIGHT = Option("output height in pixels, aspect kept, rounded up to even (default: the target video's)", None,
                 type=video_height, metavar="H")
 CROP = Option("write the model's square crop around the person instead of the whole scene", False)
-SKELETON_PREVIEW = Option("also write the skeleton as a video", None, type=output_file, metavar="PATH")
-SIDE_BY_SIDE = Option("also write skeleton | generated person side by side", None, type=output_file, metavar="PATH")
+SKELETON_PREVIEW = Option("also write the skeleton as a video", None, type=output_video, metavar="VIDEO.mp4")
+SIDE_BY_SIDE = Option("also write skeleton | generated person side by side", None, type=output_video,
+                      metavar="VIDEO.mp4")
 # Every trainer's (the protocol of dancesynth.core.runs).
 MINUTES = Option("wall-clock training time of the run in all, every call together (a resumed run trains what is "
                  "left); it stops with a checkpoint", None, type=positive_float)
@@ -287,7 +289,7 @@ class DanceRequest(Request):
 
     song: PathLike = Option("the song (any FFmpeg-readable audio file)", type=existing_file, metavar="SONG",
                             positional=True).field()
-    out: PathLike = Option("the dancing video to write", type=output_file, metavar="OUT.mp4").field()
+    out: PathLike = Option("the dancing video to write", type=output_video, metavar="OUT.mp4").field()
     target: PathLike | None = Option(
         "video of the person to animate (their appearance model is cached or trained now)", None,
         type=existing_file, metavar="VIDEO", one_of="person").field()
@@ -333,7 +335,7 @@ class RenderRequest(Request):
 
     poses: PathLike = Option("pose file (.npz, BODY_25)", type=existing_file, metavar="POSES", positional=True).field()
     model: PathLike = Option("run folder written by train-video", metavar="RUN_DIR").field()
-    out: PathLike = Option("output video", type=output_file, metavar="VIDEO.mp4").field()
+    out: PathLike = Option("output video", type=output_video, metavar="VIDEO.mp4").field()
     audio: PathLike | None = Option("audio file to mux (any FFmpeg format)", None, type=existing_file,
                                     metavar="SONG").field()
     normalize: bool = Option("use the poses as they are, without retargeting or normalisation (target canvas)",
@@ -361,7 +363,7 @@ class GenerateRequest(Request):
         metavar="RUN_DIR").field()
     out: PathLike = Option("output pose file", type=output_file, metavar="POSES.npz").field()
     seed: int = SEED.field(help="random seed of the dance (default 0)")
-    preview: PathLike | None = Option("also write a skeleton preview video with the song", None, type=output_file,
+    preview: PathLike | None = Option("also write a skeleton preview video with the song", None, type=output_video,
                                       metavar="VIDEO.mp4").field()
     precision: str = Option("decoder weights: int8 is ~3x faster on CPU; auto = int8 on CPU, fp32 on GPU", "auto",
                             choices=("auto", "fp32", "int8")).field()
@@ -382,7 +384,7 @@ class ExtractPosesRequest(Request):
                              positional=True).field()
     out: PathLike = Option("output pose file (.npz)", type=output_file, metavar="POSES.npz").field()
     preview: PathLike | None = Option("also write this mp4: the skeleton drawn over the video", None,
-                                      type=output_file, metavar="OVERLAY.mp4").field()
+                                      type=output_video, metavar="OVERLAY.mp4").field()
     smoothing: str = Option("temporal filter: savgol (no lag, default), one-euro (causal) or none", "savgol").field()
     window_s: float | None = Option("savgol window length in seconds (default 0.2)", None, type=positive_float,
                                     metavar="SECONDS", flag="--window").field()

@@ -290,16 +290,17 @@ UNWRITABLE = [  # {ro}: a read-only file system (or a folder this user may not w
      "free some disk space"),
 ]
 FAKE_DANCE = ["dance", "{in}/song.wav", "--pose-model", "{stage1}", "--video-model", "{stage2}"]
-OVERWRITES = [  # an output that is an input, another output or not a file; {in}/song_link.wav links to song.wav
-    (FAKE_DANCE + ["--out", "{in}/song.wav"],
-     "The dance video {in}/song.wav is the song {in}/song.wav; choose another output path so that the song is not "
+FAKE_DANCE_MP4 = ["dance", "{in}/song.mp4", *FAKE_DANCE[2:]]
+OVERWRITES = [  # an output that is an input, another output or not a file; {in}/song_link.mp4 links to song.mp4
+    (FAKE_DANCE_MP4 + ["--out", "{in}/song.mp4"],
+     "The dance video {in}/song.mp4 is the song {in}/song.mp4; choose another output path so that the song is not "
      "overwritten."),
-    (FAKE_DANCE + ["--out", "{in}/folder/../song.wav"], "is the song {in}/song.wav"),
-    (FAKE_DANCE + ["--out", "{in}/song_link.wav"], "The dance video {in}/song_link.wav is the song"),
+    (FAKE_DANCE_MP4 + ["--out", "{in}/folder/../song.mp4"], "is the song {in}/song.mp4"),
+    (FAKE_DANCE_MP4 + ["--out", "{in}/song_link.mp4"], "The dance video {in}/song_link.mp4 is the song"),
     (["dance", "{in}/song.wav", "--target", "{in}/video.mp4", "--cache", "{out}/cache", "--out", "{in}/video.mp4"],
      "The dance video {in}/video.mp4 is the target video"),
-    (FAKE_DANCE + ["--out", "{stage2}/latest.json"], "is a file of the appearance model {stage2}"),
-    (FAKE_DANCE + ["--out", "{stage1}/latest.json"], "is a file of the pose model {stage1}"),
+    (FAKE_DANCE + ["--out", "{stage2}/preview.mp4"], "is a file of the appearance model {stage2}"),
+    (FAKE_DANCE + ["--out", "{stage1}/preview.mp4"], "is a file of the pose model {stage1}"),
     (FAKE_DANCE + ["--out", "{out}/d.mp4", "--skeleton-preview", "{out}/d.mp4"],
      "The skeleton preview {out}/d.mp4 is also the dance video {out}/d.mp4; give each output its own path."),
     (FAKE_DANCE + ["--out", "{out}/d.mp4", "--side-by-side", "{out}/../out/d.mp4"], "is also the dance video"),
@@ -307,16 +308,14 @@ OVERWRITES = [  # an output that is an input, another output or not a file; {in}
      "The side-by-side video {out}/s.mp4 is also the skeleton preview"),
     (FAKE_DANCE + ["--out", "{in}/fifo"], "{in}/fifo is a named pipe, not a regular file"),
     (FAKE_DANCE + ["--out", "{out}/d.mp4", "--side-by-side", "{in}/fifo"], "is a named pipe"),
-    (["render", "{in}/poses.npz", "--model", "{stage2}", "--out", "{in}/poses.npz"],
-     "The video {in}/poses.npz is the pose file"),
-    (["render", "{in}/poses.npz", "--model", "{stage2}", "--audio", "{in}/song.wav", "--out", "{in}/song_link.wav"],
-     "is the audio {in}/song.wav"),
-    (["render", "{in}/poses.npz", "--model", "{stage2}", "--out", "{stage2}/latest.json"],
+    (["render", "{in}/poses.npz", "--model", "{stage2}", "--audio", "{in}/song.mp4", "--out", "{in}/song_link.mp4"],
+     "is the audio {in}/song.mp4"),
+    (["render", "{in}/poses.npz", "--model", "{stage2}", "--out", "{stage2}/preview.mp4"],
      "is a file of the appearance model"),
     (["generate", "{in}/song.wav", "--model", "{stage1}", "--out", "{in}/song.wav"], "The pose file {in}/song.wav is "
      "the song"),
-    (["generate", "{in}/song.wav", "--model", "{stage1}", "--out", "{out}/p.npz", "--preview", "{out}/./p.npz"],
-     "The preview {out}/./p.npz is also the pose file {out}/p.npz"),
+    (["generate", "{in}/song.wav", "--model", "{stage1}", "--out", "{out}/p.mp4", "--preview", "{out}/./p.mp4"],
+     "The preview {out}/./p.mp4 is also the pose file {out}/p.mp4"),
     (["generate", "{in}/song.wav", "--model", "{stage1}", "--out", "{in}/fifo"], "is a named pipe"),
     (["extract-poses", "{in}/video.mp4", "--out", "{out}/p.npz", "--preview", "{in}/video.mp4"],
      "The preview {in}/video.mp4 is the video {in}/video.mp4"),
@@ -342,12 +341,27 @@ FOLDER_OVERWRITES = [  # an output folder that is an input of its command, holds
     (["train-stgcn", "--data", "{data}", "--out", "{in}/a_file.txt"], "is a file, not a folder"),
     (["train-style-classifier", "--data", "{data}", "--out", "{data}"], "The run folder {data} is the dataset"),
 ]
+# A video is written as an MP4 whatever its name: a name players would take for another format is refused.
+NOT_AN_MP4 = [
+    (["dance", "{in}/song.wav", "--pose-model", "{stage1}", "--video-model", "{stage2}", "--out", "{out}/d.webm"],
+     "{out}/d.webm would hold an MP4 video; give a name ending in .mp4"),
+    (["dance", "{in}/song.wav", "--pose-model", "{stage1}", "--video-model", "{stage2}", "--out", "{out}/d.mp4",
+      "--side-by-side", "{out}/s.gif"], "would hold an MP4 video"),
+    (["render", "{in}/poses.npz", "--model", "{stage2}", "--out", "{out}/r"], "would hold an MP4 video"),
+    (["render", "{in}/poses.npz", *RENDER, "--skeleton-preview", "{out}/s.avi"], "would hold an MP4 video"),
+    (["render", "{in}/poses.npz", "--model", "{stage2}", "--out", "{in}/poses.npz"],
+     "{in}/poses.npz would hold an MP4 video"),
+    (["generate", "{in}/song.wav", "--model", "{stage1}", "--out", "{out}/p.npz", "--preview", "{out}/p.txt"],
+     "would hold an MP4 video"),
+    (["extract-poses", "{in}/video.mp4", "--out", "{out}/p.npz", "--preview", "{out}/o.mkv"],
+     "would hold an MP4 video"),
+]
 CATALOGUE = {"out_of_range": OUT_OF_RANGE, "folder_for_file": FOLDER_FOR_FILE, "file_for_folder": FILE_FOR_FOLDER,
              "missing_or_unreadable": MISSING_OR_UNREADABLE, "bad_dataset": BAD_DATASETS,
              "wrong_run": WRONG_RUNS + MORE_WRONG_RUNS, "bad_audio": BAD_AUDIO, "song_segment": SONG_SEGMENT,
              "bad_pose_file": BAD_POSE_FILES, "training_state": TRAINING_STATE, "edited_latest_json": EDITED_META,
              "unwritable_output": UNWRITABLE, "output_overwrites": OVERWRITES,
-             "output_folder_overwrites": FOLDER_OVERWRITES}
+             "output_folder_overwrites": FOLDER_OVERWRITES, "not_an_mp4": NOT_AN_MP4}
 CASES = [(name, argv, says) for name, cases in CATALOGUE.items() for argv, says in cases]
 
 
@@ -360,6 +374,7 @@ def _fake_run(folder: Path, kind: str) -> str:
     """A run folder that says it is a ``kind`` run (checks of the kind come before the weights are read)."""
     folder.mkdir()
     (folder / "latest.json").write_text(json.dumps({"kind": kind, "save_id": "0"}))
+    (folder / "preview.mp4").write_bytes(b"a run's preview video")
     return str(folder)
 
 
@@ -408,6 +423,9 @@ def inputs(tmp_path_factory, tiny_stage1_dataset) -> dict[str, str]:
     (folder / "a_file.txt").write_text("not a folder")
     os.mkfifo(folder / "fifo")
     (folder / "song_link.wav").symlink_to(folder / "song.wav")
+    # A song under a video's name (any FFmpeg-readable file is a song): what a video output could overwrite.
+    shutil.copy(folder / "song.wav", folder / "song.mp4")
+    (folder / "song_link.mp4").symlink_to(folder / "song.mp4")
     (folder / "video.mp4").write_bytes(b"never decoded: the arguments are refused first")
     np.save(folder / "gPO_x.npy", np.ones((90, 17, 3), np.float32))
     shutil.copy(next((tiny_stage1_dataset / "poses").glob("*.npz")), folder / "poses.npz")
