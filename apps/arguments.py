@@ -14,7 +14,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import NoReturn
 
-from dancesynth.core.fileio import not_a_folder, special_file
+from dancesynth.core.fileio import misnamed_video, not_a_folder, special_file
 
 # Counts go to C ints in torch and numpy; nothing a user means is larger.
 MAX_INT = 2**31 - 1
@@ -110,15 +110,11 @@ def output_file(text: str) -> str:
     return text
 
 
-# What a video output holds (H.264 in an MP4 container, dancesynth.core.media.VideoWriter) and the names that say so.
-VIDEO_SUFFIXES = (".mp4", ".m4v", ".mov")
-
-
 def output_video(text: str) -> str:
-    """:func:`output_file` for a video: its name must end in one of :data:`VIDEO_SUFFIXES`, since an MP4 is what is
-    written (under ``.webm``, ``.gif`` or ``.avi`` players would refuse it)."""
+    """:func:`output_file` for a video, named as the MP4 it will be
+    (:func:`dancesynth.core.fileio.misnamed_video`)."""
     output_file(text)
-    if Path(text).suffix.lower() not in VIDEO_SUFFIXES:
+    if misnamed_video(text):
         raise argparse.ArgumentTypeError(f"{text} would hold an MP4 video; give a name ending in .mp4")
     return text
 

@@ -19,7 +19,7 @@ import numpy as np
 
 from apps.requests import DanceRequest
 from dancesynth.core.errors import DancesynthError
-from dancesynth.core.fileio import check_outputs
+from dancesynth.core.fileio import check_outputs, check_video_names
 from dancesynth.core.media import SONG_SAMPLE_RATE, load_song
 from dancesynth.core.skeleton import PoseSequence
 from stage1_pose.beat_snap import DEFAULT_SNAP
@@ -106,6 +106,7 @@ def dance(request: DanceRequest, progress: bool = True) -> DanceResult:
     outputs = {"dance video": request.out, "skeleton preview": request.skeleton_preview,
                "side-by-side video": request.side_by_side}
     # Everything fast to check comes before a training that may take minutes.
+    check_video_names(outputs)
     check_outputs(outputs, {"song": song, "target video": target, "appearance model": video_model,
                             "pose model": request.pose_model})
     segment = song_segment(load_song(song, SONG_SAMPLE_RATE), SONG_SAMPLE_RATE, request.start, request.duration)

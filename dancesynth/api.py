@@ -92,13 +92,14 @@ def generate(song: PathLike, *, model: PathLike | None = None, out: PathLike | N
         device: ``auto``, ``cpu`` or ``cuda``.
     """
     from dancesynth.core.draw import write_skeleton_video
-    from dancesynth.core.fileio import atomic_path, check_outputs
+    from dancesynth.core.fileio import atomic_path, check_outputs, check_video_names
     from dancesynth.core.media import SONG_SAMPLE_RATE, load_song
     from stage1_pose.beat_snap import DEFAULT_SNAP
     from stage1_pose.beats import song_beats
     from stage1_pose.generate import generate_dance, load_pose_model
     from stage1_pose.pretrained import DEFAULT_POSE_MODEL
 
+    check_video_names({"preview": preview})
     check_outputs({"pose file": out, "preview": preview}, {"song": song, "pose model": model})
     loaded = load_pose_model(DEFAULT_POSE_MODEL if model is None else model, device, precision)
     samples = load_song(song, SONG_SAMPLE_RATE)
@@ -139,14 +140,15 @@ def render(poses: PoseSequence | PathLike, *, model: PathLike, out: PathLike, au
         the poses rendered, resampled to the target video's fps and on its canvas (``.poses``), and the files
         written (``.written``, the video first).
     """
-    from dancesynth.core.fileio import check_outputs
+    from dancesynth.core.fileio import check_outputs, check_video_names
     from dancesynth.core.media import AAC_RATE, decode_audio
     from dancesynth.core.skeleton import PoseSequence
     from stage2_video.render import check_output_options, load_appearance_model, render_video
 
     check_output_options(crop, height)
-    check_outputs({"video": out, "skeleton preview": skeleton_preview, "side-by-side video": side_by_side},
-                  {"pose file": None if isinstance(poses, PoseSequence) else poses, "appearance model": model,
+    videos = {"video": out, "skeleton preview": skeleton_preview, "side-by-side video": side_by_side}
+    check_video_names(videos)
+    check_outputs(videos, {"pose file": None if isinstance(poses, PoseSequence) else poses, "appearance model": model,
                    "audio": audio})
     if not isinstance(poses, PoseSequence):
         poses = PoseSequence.load(poses)
@@ -179,17 +181,16 @@ def extract_poses(video: PathLike, *, out: PathLike | None = None, preview: Path
         the poses, which frames had the person (``.found``) and what the tracker did (``.stats``).
     """
     from dancesynth.core.errors import DancesynthError
-    from dancesynth.core.fileio import check_outputs
+    from dancesynth.core.fileio import check_outputs, check_video_names
     from stage2_video.extract import ExtractConfig, write_preview
     from stage2_video.extract import extract_poses as extract
     from stage2_video.smoothing import SmoothingConfig
 
-    for path, suffix in ((out, ".npz"), (preview, ".mp4")):
-        if path is None:
-            continue
-        if Path(path).suffix != suffix:
-            raise DancesynthError(f"{path} must end in {suffix}; choose another file name.")
-        if not Path(path).parent.is_dir():
+    if out is not None and Path(out).suffix != ".npz":
+        raise DancesynthError(f"{out} must end in .npz; choose another file name.")
+    check_video_names({"preview": preview})
+    for path in (out, preview):
+        if path is not None and not Path(path).parent.is_dir():
             raise DancesynthError(f"The folder {Path(path).parent} does not exist; create it or choose another path.")
     check_outputs({"pose file": out, "preview": preview}, {"video": video})
     smoothing_settings = _given(window_s=window_s, min_cutoff_hz=min_cutoff_hz, beta=beta,

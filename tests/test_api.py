@@ -4,9 +4,11 @@ import subprocess
 import sys
 
 import numpy as np
+import pytest
 import soundfile
 
 import dancesynth
+from dancesynth.core.errors import DancesynthError
 from dancesynth.core.skeleton import PoseSequence
 
 TINY_LSTM = dict(hidden=16, layers=1, dropout=0.0, window_frames=30, batch_size=4, epoch_windows=0)
@@ -41,3 +43,18 @@ def test_train_pose_then_generate_end_to_end(tiny_stage1_dataset, tmp_path, drum
     dsp = dancesynth.generate(song, model=run, out=tmp_path / "dsp.npz", seed=1, device="cpu", beats="dsp")
     with np.load(tmp_path / "dsp.npz") as saved:
         assert np.array_equal(saved["downbeats"], saved["beats"][::4]) and len(dsp) == 45
+
+
+def test_a_video_named_as_another_format_is_refused_before_any_work(tmp_path):
+    # The command line refuses these names while parsing; the API refuses them too, before it loads anything.
+    song = tmp_path / "song.wav"
+    soundfile.write(song, np.zeros(SR, np.float32), SR)
+    calls = [lambda: dancesynth.dance(song, out=tmp_path / "d.webm", video_model=tmp_path / "no_model"),
+             lambda: dancesynth.render(tmp_path / "p.npz", model=tmp_path / "no_model", out=tmp_path / "r.mp4",
+                                       side_by_side=tmp_path / "s.gif"),
+             lambda: dancesynth.generate(song, out=tmp_path / "p.npz", preview=tmp_path / "p.avi"),
+             lambda: dancesynth.extract_poses(tmp_path / "v.mp4", preview=tmp_path / "o")]
+    for call in calls:
+        with pytest.raises(DancesynthError, match=r"would hold an MP4 video; give it a name ending in \.mp4\.$"):
+            call()
+    assert [p.name for p in tmp_path.iterdir()] == ["song.wav"]

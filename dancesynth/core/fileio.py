@@ -139,6 +139,24 @@ def _same_file(a: str | os.PathLike, b: str | os.PathLike) -> bool:
         return False
 
 
+# What dancesynth.core.media.VideoWriter writes (H.264 in an MP4 container) and the names that say so.
+VIDEO_SUFFIXES = (".mp4", ".m4v", ".mov")
+
+
+def misnamed_video(path: str | os.PathLike) -> bool:
+    """True when a video output's name says another format than the MP4 written (``.webm``, ``.gif``, ``.avi``,
+    none): players would refuse it."""
+    return Path(path).suffix.lower() not in VIDEO_SUFFIXES
+
+
+def check_video_names(videos: Mapping[str, str | os.PathLike | None]) -> None:
+    """Refuse a video output (``videos``: what each is, e.g. ``"dance video"``, to its path; None: not given) that
+    :func:`misnamed_video` refuses, with a :class:`DancesynthError` naming it."""
+    for what, path in videos.items():
+        if path is not None and misnamed_video(path):
+            raise DancesynthError(f"The {what} {path} would hold an MP4 video; give it a name ending in .mp4.")
+
+
 def check_outputs(outputs: Mapping[str, str | os.PathLike | None],
                   inputs: Mapping[str, str | os.PathLike | None] | None = None,
                   folders: Mapping[str, str | os.PathLike | None] | None = None) -> None:
