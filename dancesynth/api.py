@@ -148,8 +148,8 @@ def render(poses: PoseSequence | PathLike, *, model: PathLike, out: PathLike, au
     check_output_options(crop, height)
     videos = {"video": out, "skeleton preview": skeleton_preview, "side-by-side video": side_by_side}
     check_video_names(videos)
-    check_outputs(videos, {"pose file": None if isinstance(poses, PoseSequence) else poses, "appearance model": model,
-                   "audio": audio})
+    check_outputs(videos, {"pose file": None if isinstance(poses, PoseSequence) else poses,
+                           "appearance model": model, "audio": audio})
     if not isinstance(poses, PoseSequence):
         poses = PoseSequence.load(poses)
     appearance = load_appearance_model(model, device, optimize=optimize, precision=precision)
