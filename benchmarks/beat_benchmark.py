@@ -25,6 +25,8 @@ Sources (Debian packages; licences per file in ``PIECES``):
 * MuseScore 3's demo scores (``musescore3-common``; CC-BY-3.0 and CC-BY-SA-4.0 per file), exported to MIDI with
   ``mscore3 -o out.mid score.mscx`` (``QT_QPA_PLATFORM=offscreen``), then rendered like the MIDI files.
 * Frets-on-Fire songs (Muldjord: CC-BY-SA-3.0; Sectoid: MIT): recordings with the game's chart ``notes.mid``.
+* Freedoom's level music (``freedoom``, BSD-3-Clause): MIDI songs composed for the game, stored as lumps
+  (``D_*``) of its two WAD files, taken out (:func:`wad_lump`) and rendered like the MIDI files; held out (below).
 
 Ground truth. Rendered pieces are exact: fluidsynth renders MIDI time 0 at audio time 0 and the tempo map
 (``mido``) turns every grid tick into seconds. The beat is the one people count and dancers step to: the quarter
@@ -57,7 +59,10 @@ showing that tracker's failures. These 77 pieces are MMA library files in 3/4 or
 shipped networks trained on (as groove songs or in MMA's example songs; nor any test piece plays from), each file's
 first groove at a tempo drawn from the SHA-1 of its path (log-uniform 60-190 BPM), kinds from the file's name and
 the tempo. ``train_beat_tracker.py`` leaves their files out, so the split stays unheard; it is a second dev set for
-choices, not a test.
+choices, not a test. With them, 47 of Freedoom's songs (``HOLDOUT_SONGS``): whole compositions by other hands
+(rock and metal, game soundtrack; 70-186 BPM, some in 3/4, 5/4-7/4), those whose notes sit on the MIDI grid (at least
+85 % of note onsets within a tenth of a sixteenth note of it; the songs converted from the game's own format at 89
+ticks a quarter are not), main kind rock-metal where a part plays overdriven or distortion guitar.
 
 Beats count from the first to the last moment the audio is within 30 dB of its loudest 50-ms frame, so silent
 intros and tails carry no beats (nor downbeats). ``run`` scores each tracker with ``mir_eval.beat`` without
@@ -80,6 +85,7 @@ import json
 import math
 import os
 import shutil
+import struct
 import subprocess
 import sys
 import tempfile
@@ -104,6 +110,7 @@ _OPENMSX = "usr/share/games/openttd/baseset/openmsx"
 _MMA_EXAMPLES = "usr/share/doc/mma/examples"
 _MMA_LIB = "usr/share/mma/lib"
 _MUSESCORE = "usr/share/mscore3-3.2/demos"
+_FREEDOOM = "usr/share/games/doom"
 # An MMA song: these chords, one a bar, repeated for about this many seconds.
 _MMA_CHORDS = ("C", "Am", "F", "G7")
 _MMA_SECONDS = 60.0
@@ -120,10 +127,10 @@ _ACTIVE_DB = 30.0
 class Piece:
     """One benchmark piece: its id, kinds (main kind first), Debian package, file inside it, licence and source.
 
-    ``source`` is "midi" (a MIDI file), "musescore" (a score exported to MIDI), "fof" (a Frets-on-Fire song folder)
-    or "mma" (``path`` is an MMA groove library file; the song plays ``groove`` at ``bpm`` MIDI quarter notes a
-    minute, ``grid`` is (MIDI quarter notes per beat, beats per bar) and ``extra`` holds MMA lines added after the
-    groove).
+    ``source`` is "midi" (a MIDI file), "musescore" (a score exported to MIDI), "fof" (a Frets-on-Fire song folder),
+    "wad" (``path`` is a Doom WAD file; the song is its MIDI lump ``groove``) or "mma" (``path`` is an MMA groove
+    library file; the song plays ``groove`` at ``bpm`` MIDI quarter notes a minute, ``grid`` is (MIDI quarter notes
+    per beat, beats per bar) and ``extra`` holds MMA lines added after the groove).
     """
 
     id: str
@@ -149,6 +156,10 @@ def _mma(id_: str, kinds: tuple[str, ...], library: str, groove: str, bpm: float
 
 def _musescore(id_: str, kinds: tuple[str, ...], name: str, licence: str) -> Piece:
     return Piece(id_, kinds, "musescore3-common", f"{_MUSESCORE}/{name}", licence, "musescore")
+
+
+def _freedoom(id_: str, kinds: tuple[str, ...], wad: str, lump: str) -> Piece:
+    return Piece(id_, kinds, "freedoom", f"{_FREEDOOM}/{wad}.wad", "BSD-3-Clause", "wad", lump)
 
 
 def _fof(id_: str, kinds: tuple[str, ...], package: str, folder: str, licence: str) -> Piece:
@@ -320,7 +331,58 @@ HOLDOUT: tuple[Piece, ...] = (
     _mma("holdout-zoom-samba", ("latin",), "zoom/samba", "SAMBA01", 115),
 )
 
-PIECES += HOLDOUT
+# Freedoom's songs on the MIDI grid (see the docstring).
+HOLDOUT_SONGS: tuple[Piece, ...] = (
+    _freedoom("holdout-freedoom1-e1m1", ('rock-metal', 'fast'), "freedoom1", "D_E1M1"),
+    _freedoom("holdout-freedoom1-e1m2", ('rock-metal',), "freedoom1", "D_E1M2"),
+    _freedoom("holdout-freedoom1-e1m3", ('rock-metal', 'slow'), "freedoom1", "D_E1M3"),
+    _freedoom("holdout-freedoom1-e1m4", ('rock-metal', 'slow'), "freedoom1", "D_E1M4"),
+    _freedoom("holdout-freedoom1-e1m5", ('soundtrack', 'slow'), "freedoom1", "D_E1M5"),
+    _freedoom("holdout-freedoom1-e1m7", ('rock-metal',), "freedoom1", "D_E1M7"),
+    _freedoom("holdout-freedoom1-e1m8", ('soundtrack', 'triple'), "freedoom1", "D_E1M8"),
+    _freedoom("holdout-freedoom1-e1m9", ('rock-metal',), "freedoom1", "D_E1M9"),
+    _freedoom("holdout-freedoom1-e2m1", ('rock-metal',), "freedoom1", "D_E2M1"),
+    _freedoom("holdout-freedoom1-e2m2", ('rock-metal',), "freedoom1", "D_E2M2"),
+    _freedoom("holdout-freedoom1-e2m3", ('rock-metal',), "freedoom1", "D_E2M3"),
+    _freedoom("holdout-freedoom1-e2m4", ('soundtrack', 'slow'), "freedoom1", "D_E2M4"),
+    _freedoom("holdout-freedoom1-e2m5", ('rock-metal',), "freedoom1", "D_E2M5"),
+    _freedoom("holdout-freedoom1-e2m7", ('rock-metal', 'fast'), "freedoom1", "D_E2M7"),
+    _freedoom("holdout-freedoom1-e2m8", ('rock-metal', 'fast'), "freedoom1", "D_E2M8"),
+    _freedoom("holdout-freedoom1-e3m2", ('soundtrack', 'fast'), "freedoom1", "D_E3M2"),
+    _freedoom("holdout-freedoom1-e3m3", ('rock-metal',), "freedoom1", "D_E3M3"),
+    _freedoom("holdout-freedoom1-e3m4", ('rock-metal',), "freedoom1", "D_E3M4"),
+    _freedoom("holdout-freedoom1-e3m5", ('rock-metal',), "freedoom1", "D_E3M5"),
+    _freedoom("holdout-freedoom1-e3m6", ('rock-metal',), "freedoom1", "D_E3M6"),
+    _freedoom("holdout-freedoom1-e3m7", ('rock-metal', 'fast'), "freedoom1", "D_E3M7"),
+    _freedoom("holdout-freedoom1-e3m8", ('soundtrack',), "freedoom1", "D_E3M8"),
+    _freedoom("holdout-freedoom1-e3m9", ('soundtrack',), "freedoom1", "D_E3M9"),
+    _freedoom("holdout-freedoom1-inter", ('rock-metal',), "freedoom1", "D_INTER"),
+    _freedoom("holdout-freedoom2-adrian", ('rock-metal',), "freedoom2", "D_ADRIAN"),
+    _freedoom("holdout-freedoom2-betwee", ('rock-metal',), "freedoom2", "D_BETWEE"),
+    _freedoom("holdout-freedoom2-count2", ('rock-metal',), "freedoom2", "D_COUNT2"),
+    _freedoom("holdout-freedoom2-countd", ('rock-metal',), "freedoom2", "D_COUNTD"),
+    _freedoom("holdout-freedoom2-ddtbl2", ('rock-metal',), "freedoom2", "D_DDTBL2"),
+    _freedoom("holdout-freedoom2-ddtbl3", ('soundtrack', 'slow'), "freedoom2", "D_DDTBL3"),
+    _freedoom("holdout-freedoom2-ddtblu", ('rock-metal',), "freedoom2", "D_DDTBLU"),
+    _freedoom("holdout-freedoom2-dead2", ('rock-metal',), "freedoom2", "D_DEAD2"),
+    _freedoom("holdout-freedoom2-doom", ('rock-metal',), "freedoom2", "D_DOOM"),
+    _freedoom("holdout-freedoom2-doom2", ('rock-metal',), "freedoom2", "D_DOOM2"),
+    _freedoom("holdout-freedoom2-evil", ('rock-metal',), "freedoom2", "D_EVIL"),
+    _freedoom("holdout-freedoom2-in_cit", ('rock-metal',), "freedoom2", "D_IN_CIT"),
+    _freedoom("holdout-freedoom2-messg2", ('rock-metal', 'slow'), "freedoom2", "D_MESSG2"),
+    _freedoom("holdout-freedoom2-romer2", ('rock-metal',), "freedoom2", "D_ROMER2"),
+    _freedoom("holdout-freedoom2-romero", ('rock-metal',), "freedoom2", "D_ROMERO"),
+    _freedoom("holdout-freedoom2-runni2", ('rock-metal',), "freedoom2", "D_RUNNI2"),
+    _freedoom("holdout-freedoom2-runnin", ('rock-metal',), "freedoom2", "D_RUNNIN"),
+    _freedoom("holdout-freedoom2-shawn3", ('soundtrack', 'fast'), "freedoom2", "D_SHAWN3"),
+    _freedoom("holdout-freedoom2-stalks", ('soundtrack',), "freedoom2", "D_STALKS"),
+    _freedoom("holdout-freedoom2-stlks3", ('rock-metal',), "freedoom2", "D_STLKS3"),
+    _freedoom("holdout-freedoom2-tense", ('rock-metal',), "freedoom2", "D_TENSE"),
+    _freedoom("holdout-freedoom2-theda2", ('rock-metal', 'fast'), "freedoom2", "D_THEDA2"),
+    _freedoom("holdout-freedoom2-ultima", ('rock-metal',), "freedoom2", "D_ULTIMA"),
+)
+
+PIECES += HOLDOUT + HOLDOUT_SONGS
 
 # The splits a piece may be in (SPLIT's values); "all" on the command lines means every one.
 SPLITS = ("dev", "test", "holdout")
@@ -347,7 +409,7 @@ SPLIT: dict[str, str] = {
     "hiphop-triphop_76": "dev", "electronic-techno_130": "test", "electronic-house_124": "test",
     "electronic-trance_138": "dev", "electronic-dnb_172": "dev", "pop-pop_116": "test", "pop-80spop_120": "test",
     "pop-dancepop_124": "dev", "pop-popballad_72": "dev",
-    **{piece.id: "holdout" for piece in HOLDOUT},
+    **{piece.id: "holdout" for piece in HOLDOUT + HOLDOUT_SONGS},
 }
 
 
@@ -517,6 +579,9 @@ def piece_midi(cache: Path, piece: Piece, tmp: Path, seconds: float = _MMA_SECON
     if piece.source == "midi":
         return source
     out = tmp / "piece.mid"
+    if piece.source == "wad":
+        out.write_bytes(wad_lump(source, piece.groove))
+        return out
     if piece.source == "mma":
         song = tmp / "song.mma"
         song.write_text(mma_song(piece, seconds))
@@ -527,6 +592,18 @@ def piece_midi(cache: Path, piece: Piece, tmp: Path, seconds: float = _MMA_SECON
         subprocess.run(["mscore3", "-o", str(out), str(source)], check=True, capture_output=True,
                        env={**os.environ, "QT_QPA_PLATFORM": "offscreen"})
     return out
+
+
+def wad_lump(wad: Path, name: str) -> bytes:
+    """The bytes of lump ``name`` of a Doom WAD file (a 12-byte header, then a directory of 16-byte entries:
+    offset, size, 8-byte name)."""
+    data = wad.read_bytes()
+    _, count, directory = struct.unpack_from("<4sii", data, 0)
+    for n in range(count):
+        offset, size, raw = struct.unpack_from("<ii8s", data, directory + 16 * n)
+        if raw.rstrip(b"\0").decode("ascii") == name:
+            return data[offset:offset + size]
+    raise KeyError(f"{wad} has no lump {name}")
 
 
 def render_midi(mid: Path, tmp: Path, gain: float = 0.3, rate: int = 44100,

