@@ -1,6 +1,7 @@
 """The beat benchmark's ground truth (beat and bar grids from MIDI time signatures), its fixed split and scores."""
 
 import importlib.util
+import struct
 import sys
 from collections import Counter
 from pathlib import Path
@@ -140,8 +141,6 @@ def test_scores_leave_downbeats_empty_without_them():
 
 def test_a_song_comes_out_of_its_wad_file_whole(tmp_path):
     """Freedoom's songs are MIDI lumps of a WAD file: a header, the lumps, then a directory of (offset, size, name)."""
-    import struct
-
     song, other = b"MThd" + bytes(range(40)), b"not a song"
     directory = struct.pack("<ii8s", 12, len(other), b"DEMO1") + struct.pack("<ii8s", 12 + len(other), len(song),
                                                                              b"D_RUNNIN")

@@ -67,3 +67,19 @@ def test_silence_before_and_after_has_no_beats():
 def test_tempo_states_cover_the_range():
     taus = beat_lengths(FPS, DecoderConfig(min_bpm=60, max_bpm=200))
     assert taus[0] == 15 and taus[-1] == 50 and np.all(np.diff(taus) > 0)
+
+
+@pytest.mark.parametrize("bpm", [80, 90])
+def test_a_slow_song_with_marked_off_beats_keeps_its_tempo(bpm):
+    """The networks' peaks are two frames wide at 50 fps with next to nothing beside them, and on a slow song with
+    busy eighths they mark the off-beats too, at half height: the beats stay at the song's tempo, not double."""
+    rng = np.random.default_rng(0)
+    beat, down = rng.uniform(0, 0.02, int(40 * FPS)), rng.uniform(0, 0.01, int(40 * FPS))
+    truth = np.arange(1.0, 39.0, 60.0 / bpm)
+    for i, t in enumerate(truth):
+        f, g = int(t * FPS), int((t + 30.0 / bpm) * FPS)
+        (down if i % 4 == 0 else beat)[f:f + 2] = 0.6 * rng.uniform(0.8, 1.0)
+        beat[g:g + 2] = 0.3 * rng.uniform(0.8, 1.0)
+    found = decode(beat, down, FPS)
+    assert found.bpm == pytest.approx(bpm, rel=0.04)
+    assert mir_eval.beat.f_measure(truth, found.beats) >= 0.95
