@@ -1,10 +1,11 @@
 """Train the learned beat and downbeat tracker (:mod:`stage1_pose.beat_tracking`) on audio with exact grids that
-needs no labelling, and write the networks the package ships (two, seeds 0 and 1; the tracker averages them).
+needs no labelling, and write the networks the package ships (three, seeds 0, 1 and 2; the tracker averages them).
 
     .venv/bin/python benchmarks/beat_benchmark.py fetch        # once: packages, renderer, the benchmark's pieces
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_beat_tracker.py corpus   # renders the corpus (~9 min)
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_beat_tracker.py train --minutes 45 --seed 0
     OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_beat_tracker.py train --minutes 45 --seed 1
+    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/train_beat_tracker.py train --minutes 45 --seed 2
         # each writes stage1_pose/pretrained/beat_tracker/seed<SEED>, rendering what is missing first
 
 It lives beside the benchmark because it reuses the benchmark's packages, renderer and loaders and needs the same
