@@ -132,3 +132,7 @@ def output_folder(text: str) -> str:
         raise argparse.ArgumentTypeError(f"cannot create {text}: {existing} is a file, not a folder")
     _writable_folder(existing, text)
     return text
+
+
+# The checks whose value is a path: the Python API checks its paths itself (check_outputs, check_video_names).
+PATH_CHECKS = (existing_file, output_file, output_video, output_folder)

@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 from typing import Any, ClassVar, Self
 
 from apps.arguments import (
+    PATH_CHECKS,
     existing_file,
     fraction,
     non_negative_float,
@@ -197,6 +198,29 @@ class Request:
             else:
                 flags += [flag, _text(value)]
         return ["dancesynth", self.COMMAND, *positional, *flags]
+
+    @classmethod
+    def check_arguments(cls, arguments: Mapping[str, Any]) -> None:
+        """Check an API call's ``arguments`` as the command line checks its own: each of this request's fields by
+        its option's ``type`` (given the value as a command line writes it) and choices, but paths (the API checks
+        them itself: :func:`dancesynth.core.fileio.check_outputs`). None, a switch's bool and values no command line
+        holds (a PoseSequence, a dict) pass; so do arguments that are no field. The first bad one raises a
+        one-sentence :class:`DancesynthError` naming it."""
+        options = cls.options()
+        for name, value in arguments.items():
+            option = options.get(name)
+            if (option is None or value is None or isinstance(option.default, bool) or option.type in PATH_CHECKS
+                    or not isinstance(value, str | os.PathLike | int | float | tuple)):
+                continue
+            choices = option.choices() if callable(option.choices) else option.choices
+            for item in value if isinstance(value, tuple) else (value,):
+                try:
+                    if option.type is not None:
+                        option.type(_text(item))
+                except argparse.ArgumentTypeError as error:
+                    raise DancesynthError(f"{name}: {error}.") from None
+                if choices is not None and item not in choices:
+                    raise DancesynthError(f"{name}: {shown(item)} is not one of {', '.join(choices)}.")
 
     def api_kwargs(self) -> dict[str, Any]:
         """The keyword arguments of the API function making this request (every field but the command's own)."""

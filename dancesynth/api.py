@@ -70,6 +70,7 @@ def dance(song: PathLike, *, out: PathLike, target: PathLike | None = None, vide
     from apps.pipeline import dance as make_dance
     from apps.requests import DanceRequest
 
+    DanceRequest.check_arguments(arguments)
     return make_dance(DanceRequest(**arguments))
 
 
@@ -91,6 +92,7 @@ def generate(song: PathLike, *, model: PathLike | None = None, out: PathLike | N
         precision: ``int8`` decodes about 3x faster on CPU; ``auto`` = int8 on CPU, fp32 on GPU.
         device: ``auto``, ``cpu`` or ``cuda``.
     """
+    from apps.requests import GenerateRequest
     from dancesynth.core.draw import write_skeleton_video
     from dancesynth.core.fileio import atomic_path, check_outputs, check_video_names
     from dancesynth.core.media import SONG_SAMPLE_RATE, load_song
@@ -99,6 +101,7 @@ def generate(song: PathLike, *, model: PathLike | None = None, out: PathLike | N
     from stage1_pose.generate import generate_dance, load_pose_model
     from stage1_pose.pretrained import DEFAULT_POSE_MODEL
 
+    GenerateRequest.check_arguments(locals())
     check_video_names({"preview": preview})
     check_outputs({"pose file": out, "preview": preview}, {"song": song, "pose model": model})
     loaded = load_pose_model(DEFAULT_POSE_MODEL if model is None else model, device, precision)
@@ -140,11 +143,13 @@ def render(poses: PoseSequence | PathLike, *, model: PathLike, out: PathLike, au
         the poses rendered, resampled to the target video's fps and on its canvas (``.poses``), and the files
         written (``.written``, the video first).
     """
+    from apps.requests import RenderRequest
     from dancesynth.core.fileio import check_outputs, check_video_names
     from dancesynth.core.media import AAC_RATE, decode_audio
     from dancesynth.core.skeleton import PoseSequence
     from stage2_video.render import check_output_options, load_appearance_model, render_video
 
+    RenderRequest.check_arguments(locals())
     check_output_options(crop, height)
     videos = {"video": out, "skeleton preview": skeleton_preview, "side-by-side video": side_by_side}
     check_video_names(videos)
@@ -180,12 +185,14 @@ def extract_poses(video: PathLike, *, out: PathLike | None = None, preview: Path
     Returns:
         the poses, which frames had the person (``.found``) and what the tracker did (``.stats``).
     """
+    from apps.requests import ExtractPosesRequest
     from dancesynth.core.errors import DancesynthError
     from dancesynth.core.fileio import check_outputs, check_video_names
     from stage2_video.extract import ExtractConfig, write_preview
     from stage2_video.extract import extract_poses as extract
     from stage2_video.smoothing import SmoothingConfig
 
+    ExtractPosesRequest.check_arguments(locals())
     if out is not None and Path(out).suffix != ".npz":
         raise DancesynthError(f"{out} must end in .npz; choose another file name.")
     check_video_names({"preview": preview})
@@ -229,10 +236,12 @@ def train_pose(method: str, *, data: PathLike, out: PathLike, preset: str = "sma
     Returns:
         the final checkpoint's metadata (method, epoch, epochs, step, config, ...).
     """
+    from apps.requests import TrainPoseRequest
     from dancesynth.core.fileio import check_outputs
     from stage1_pose.train import TrainerConfig
     from stage1_pose.train import train as train_method
 
+    TrainPoseRequest.check_arguments(locals())
     check_outputs({}, {"dataset": data}, folders={"run folder": out})
     options = TrainerConfig(batch_size=batch_size, window_frames=window, checkpoint_every=checkpoint_every,
                             preview_every=preview_every, preview_gap_minutes=preview_gap, seed=seed,
@@ -267,10 +276,12 @@ def train_video(video: PathLike, *, out: PathLike, preset: str = "small", overri
     Returns:
         the last checkpoint's metadata (epoch, step, validation SSIM/PSNR, ...).
     """
+    from apps.requests import TrainVideoRequest
     from dancesynth.core.fileio import check_outputs
     from stage2_video.train import TrainOptions
     from stage2_video.train import train_video as train_appearance
 
+    TrainVideoRequest.check_arguments(locals())
     check_outputs({}, {"target video": video, "pose file": poses, "VGG weights": vgg_weights},
                   folders={"run folder": out})
     options = TrainOptions(minutes=minutes, epochs=epochs, checkpoint_every=checkpoint_every,

@@ -58,3 +58,28 @@ def test_a_video_named_as_another_format_is_refused_before_any_work(tmp_path):
         with pytest.raises(DancesynthError, match=r"would hold an MP4 video; give it a name ending in \.mp4\.$"):
             call()
     assert [p.name for p in tmp_path.iterdir()] == ["song.wav"]
+
+
+def test_numbers_and_choices_are_checked_as_the_command_line_checks_them(tmp_path):
+    # The same options define both; the API says which argument is wrong in one sentence, before any work.
+    song = tmp_path / "song.wav"
+    soundfile.write(song, np.zeros(SR, np.float32), SR)
+    out = tmp_path / "d.mp4"
+    calls = {r"seed: must be at most 2147483647, got '1180591620717411303424'\.$": lambda: dancesynth.generate(
+                 song, out=tmp_path / "p.npz", seed=2**70),
+             r"seed: must be 0 or more, got '-1'\.$": lambda: dancesynth.generate(song, seed=-1),
+             r"seed: must be a whole number, got '2.5'\.$": lambda: dancesynth.generate(song, seed=2.5),
+             r"beats: 'nope' is not one of combined, learned, dsp\.$": lambda: dancesynth.dance(
+                 song, out=out, video_model=tmp_path / "run", beats="nope"),
+             r"start: must be a finite number, got 'nan'\.$": lambda: dancesynth.dance(
+                 song, out=out, video_model=tmp_path / "run", start=float("nan")),
+             r"height: must be 16 to 4320 pixels, got '-3'\.$": lambda: dancesynth.render(
+                 tmp_path / "p.npz", model=tmp_path / "run", out=out, height=-3),
+             r"max_missing: must be between 0 and 1, got '1.5'\.$": lambda: dancesynth.extract_poses(
+                 tmp_path / "v.mp4", max_missing=1.5),
+             r"method: 'nope' is not one of dance_revolution, ": lambda: dancesynth.train_pose(
+                 "nope", data=tmp_path, out=tmp_path / "run")}
+    for message, call in calls.items():
+        with pytest.raises(DancesynthError, match=message):
+            call()
+    assert [p.name for p in tmp_path.iterdir()] == ["song.wav"]
