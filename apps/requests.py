@@ -201,10 +201,10 @@ class Request:
 
     @classmethod
     def check_arguments(cls, arguments: Mapping[str, Any]) -> None:
-        """Check an API call's ``arguments`` as the command line checks its own: each of this request's fields by
-        its option's ``type`` (given the value as a command line writes it) and choices, but paths (the API checks
-        them itself: :func:`dancesynth.core.fileio.check_outputs`). None, a switch's bool and values no command line
-        holds (a PoseSequence, a dict) pass; so do arguments that are no field. The first bad one raises a
+        """Check an API call's ``arguments`` as the command line checks its own: each field by its option's
+        ``type`` (given the value as a command line writes it) and choices. Paths are left to the API, which checks
+        them itself (:func:`dancesynth.core.fileio.check_outputs`); None, a switch's bool, values no command line
+        holds (a PoseSequence, a dict) and arguments that are no field pass. The first bad one raises a
         one-sentence :class:`DancesynthError` naming it."""
         options = cls.options()
         for name, value in arguments.items():
