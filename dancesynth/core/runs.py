@@ -29,7 +29,8 @@ every trainer the same behaviour:
 Distributed training (``torchrun``): the folder joins the process group from the environment (gloo on CPU,
 nccl on GPU); :meth:`RunFolder.average_gradients` averages gradients over processes (DistributedDataParallel's
 arithmetic without its wrapper, which assumes one backward per step and so does not fit GANs). ``save`` is
-collective (each process's RNG state is kept); only rank 0 writes files.
+collective (each process's RNG state is kept); only rank 0 writes files; ``close`` leaves the group (all
+processes together).
 """
 
 from __future__ import annotations
@@ -144,7 +145,10 @@ class RunFolder:
     def __init__(self, path: str | os.PathLike, kind: str, device: torch.device, resume: bool = False,
                  tables: tuple[str, ...] = ("metrics",)) -> None:
         self.path, self.kind, self.tables = Path(path), kind, tables
+        joined = dist.is_available() and dist.is_initialized()
         self.rank, self.world = init_distributed(device)
+        # The group this folder joined it leaves at close(); one its caller made stays the caller's.
+        self._leave_group = self.world > 1 and not joined
         self.meta: dict[str, Any] | None = ckpt.load_meta(self.path, kind) if resume else None
         if not resume and ckpt.has_checkpoint(self.path):
             raise DancesynthError(f"{self.path} already holds a trained model; pass --resume to continue it "
@@ -300,9 +304,15 @@ class RunFolder:
             plot_metrics([self.table_path(t) for t in self.tables], self.path / name)
 
     def close(self) -> None:
+        """End the run: TensorBoard's files closed, and every process leaves the group it joined, together (a
+        process tearing gloo down while another still used it aborted with SIGABRT)."""
         if self._tensorboard:
             self._tensorboard.close()
         self._tensorboard = None
+        if self._leave_group:
+            dist.barrier()
+            dist.destroy_process_group()
+            self._leave_group = False
 
 
 class TrainingSession:

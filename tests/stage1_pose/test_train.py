@@ -121,10 +121,7 @@ def _ddp_worker(rank: int, data: str, out: str, port: int) -> None:
                       TrainerConfig(epochs=1, preview_every=0), device)
     trainer.run()
     torch.save(trainer.method.state_dict(), Path(out).parent / f"rank{rank}.pt")
-    # Both ranks leave the group together: one tearing gloo down while the other still used it aborted (SIGABRT,
-    # "terminate called without an active exception") once under a loaded CPU.
-    torch.distributed.barrier()
-    torch.distributed.destroy_process_group()
+    assert not torch.distributed.is_initialized()  # the run left the group it joined
 
 
 def test_two_process_training_equals_one_process_on_the_same_global_batch(tiny_stage1_dataset, tmp_path):
