@@ -55,10 +55,11 @@ them) go to dev, the others in the order of the SHA-1 of their id; dev takes hal
 the tuned-on pieces if they are more. Make every choice on dev; score test once per change and report it.
 
 Held-out grooves (``HOLDOUT``, split "holdout"): the dev half is in the learned tracker's training data, so it stopped
-showing that tracker's failures. These 77 pieces are MMA library files in 3/4 or 4/4 none of whose grooves the
-shipped networks trained on (as groove songs or in MMA's example songs; nor any test piece plays from), each file's
-first groove at a tempo drawn from the SHA-1 of its path (log-uniform 60-190 BPM), kinds from the file's name and
-the tempo. ``train_beat_tracker.py`` leaves their files out, so the split stays unheard; it is a second dev set for
+showing that tracker's failures. These 80 pieces are MMA library files none of whose grooves the shipped networks
+trained on (as groove songs or in MMA's example songs; nor any test piece plays from), each file's first groove at a
+tempo drawn from a SHA-1: 77 in 3/4 or 4/4 (of the path; log-uniform 60-190 BPM) and 3 in 6/8 (of "library/groove";
+45-110 dotted quarters a minute), kinds from the file's name and the tempo. ``train_beat_tracker.py`` leaves their
+files out, so the split stays unheard; it is a second dev set for
 choices, not a test. With them, 47 of Freedoom's songs (``HOLDOUT_SONGS``): whole compositions by other hands
 (rock and metal, game soundtrack; 70-186 BPM, some in 3/4, 5/4-7/4), those whose notes sit on the MIDI grid (at least
 85 % of note onsets within a tenth of a sixteenth note of it; the songs converted from the game's own format at 89
@@ -331,6 +332,12 @@ HOLDOUT: tuple[Piece, ...] = (
     _mma("holdout-zoom-jazz04", ("jazz",), "zoom/jazz04", "04JAZZ01", 130),
     _mma("holdout-zoom-rnb", ("other", "fast"), "zoom/rnb", "RnB01", 153),
     _mma("holdout-zoom-samba", ("latin",), "zoom/samba", "SAMBA01", 115),
+    # Files in 6/8 that count eighths as MIDI quarters (MMA's "Time 6"): the beat is three of them, two a bar; tempi
+    # (dotted quarters a minute, written here in eighths) drawn from the SHA-1 of "<library>/<groove>", log-uniform
+    # 45-110.
+    _mma("holdout-stdlib-blues68", ("triple", "jazz"), "stdlib/blues68", "Blues68", 330, (3, 2)),
+    _mma("holdout-zoom-blues68", ("triple", "jazz", "slow"), "zoom/blues68", "68BLUS", 198, (3, 2)),
+    _mma("holdout-zoom-blues34", ("triple", "jazz"), "zoom/blues34", "BLUS04", 255, (3, 2)),
 )
 
 # Freedoom's songs on the MIDI grid (see the docstring).
