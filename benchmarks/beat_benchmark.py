@@ -63,7 +63,15 @@ files out, so the split stays unheard; it is a second dev set for
 choices, not a test. With them, 47 of Freedoom's songs (``HOLDOUT_SONGS``): whole compositions by other hands
 (rock and metal, game soundtrack; 70-186 BPM, some in 3/4, 5/4-7/4), those whose notes sit on the MIDI grid (at least
 85 % of note onsets within a tenth of a sixteenth note of it; the songs converted from the game's own format at 89
-ticks a quarter are not), main kind rock-metal where a part plays overdriven or distortion guitar.
+ticks a quarter are not), main kind rock-metal where a part plays overdriven or distortion guitar. And 23 of LMMS's
+demo projects (``HOLDOUT_PROJECTS``, Debian's ``lmms-common``; licences per file in its copyright file): electronic
+productions by other hands, with their own synthesizers and samples, rendered by LMMS itself (``lmms -r``; Debian's
+``lmms``). A project keeps one tempo from time 0 (none automates it), so the grid is exact: the quarter notes at the
+head's tempo (as the producer counts them: the two reggae sketches at 180) and bars of the head's x/4; the two
+projects not in 4/4 (8/4, 1/1) and the tutorial are left out. The grid's phase is checked like the MIDI renderings'
+(``onset_lag_ms``: 8-28 ms on 18 of the 23; on *CPU*, *Zen* and *Progress* the hi-hats between the beats lead the
+onset envelope while the kicks' low-band onsets are on the grid; *Mauiwowi*'s kicks are syncopated in the project
+itself; on *Surrender-Main* the low-band onsets come 0.15 of a beat after the grid, not explained).
 
 Beats count from the first to the last moment the audio is within 30 dB of its loudest 50-ms frame, so silent
 intros and tails carry no beats (nor downbeats). ``run`` scores each tracker with ``mir_eval.beat`` without
@@ -112,6 +120,7 @@ _MMA_EXAMPLES = "usr/share/doc/mma/examples"
 _MMA_LIB = "usr/share/mma/lib"
 _MUSESCORE = "usr/share/mscore3-3.2/demos"
 _FREEDOOM = "usr/share/games/doom"
+_LMMS = "usr/share/lmms/projects"
 # An MMA song: these chords, one a bar, repeated for about this many seconds.
 _MMA_CHORDS = ("C", "Am", "F", "G7")
 _MMA_SECONDS = 60.0
@@ -129,9 +138,10 @@ class Piece:
     """One benchmark piece: its id, kinds (main kind first), Debian package, file inside it, licence and source.
 
     ``source`` is "midi" (a MIDI file), "musescore" (a score exported to MIDI), "fof" (a Frets-on-Fire song folder),
-    "wad" (``path`` is a Doom WAD file; the song is its MIDI lump ``groove``) or "mma" (``path`` is an MMA groove
-    library file; the song plays ``groove`` at ``bpm`` MIDI quarter notes a minute, ``grid`` is (MIDI quarter notes
-    per beat, beats per bar) and ``extra`` holds MMA lines added after the groove).
+    "wad" (``path`` is a Doom WAD file; the song is its MIDI lump ``groove``), "lmms" (an LMMS project, rendered by
+    LMMS) or "mma" (``path`` is an MMA groove library file; the song plays ``groove`` at ``bpm`` MIDI quarter notes
+    a minute, ``grid`` is (MIDI quarter notes per beat, beats per bar) and ``extra`` holds MMA lines added after the
+    groove).
     """
 
     id: str
@@ -163,6 +173,13 @@ def _freedoom(wad: str, lump: str, kinds: tuple[str, ...]) -> Piece:
     """Freedoom's song ``lump`` (``D_E1M1``) of ``{wad}.wad``, named ``holdout-{wad}-e1m1``."""
     return Piece(f"holdout-{wad}-{lump.removeprefix('D_').lower()}", kinds, "freedoom", f"{_FREEDOOM}/{wad}.wad",
                  "BSD-3-Clause", "wad", lump)
+
+
+def _lmms(name: str, kinds: tuple[str, ...], licence: str) -> Piece:
+    """LMMS's demo project ``name`` (``demos/Saber-FinalStep.mmpz``), named ``holdout-lmms-saber-finalstep``."""
+    stem = Path(name).name.split(".")[0]
+    return Piece(f"holdout-lmms-{stem.lower().replace('(', '').replace(')', '')}", kinds, "lmms-common",
+                 f"{_LMMS}/{name}", licence, "lmms")
 
 
 def _fof(id_: str, kinds: tuple[str, ...], package: str, folder: str, licence: str) -> Piece:
@@ -391,7 +408,34 @@ HOLDOUT_SONGS: tuple[Piece, ...] = (
     _freedoom("freedoom2", "D_ULTIMA", ("rock-metal",)),
 )
 
-PIECES += HOLDOUT + HOLDOUT_SONGS
+# LMMS's demo projects in 4/4 (see the docstring); licences from lmms-common's copyright file.
+HOLDOUT_PROJECTS: tuple[Piece, ...] = (
+    _lmms("demos/Alf42red-Mauiwowi.mmpz", ("electronic",), "CC-BY-SA-3.0"),
+    _lmms("demos/CapDan/CapDan-ReggaeTry.mmpz", ("other", "fast"), "Artistic-2.0"),
+    _lmms("demos/CapDan/CapDan-ReggaetonTry.mmpz", ("latin", "fast"), "Artistic-2.0"),
+    _lmms("demos/CapDan/CapDan-TwilightArea-OriginalByAlf42red.mmpz", ("electronic", "fast"), "CC-BY-SA-3.0"),
+    _lmms("demos/CapDan/CapDan-ZeroSumGame-OriginalByZakarra.mmpz", ("electronic",), "Artistic-2.0"),
+    _lmms("demos/EsoXLB-CPU.mmpz", ("electronic",), "Artistic-2.0"),
+    _lmms("demos/Impulslogik-Zen.mmpz", ("electronic",), "Artistic-2.0"),
+    _lmms("demos/Jousboxx-BuzzerBeater.mmpz", ("electronic",), "CC-BY-SA-4.0"),
+    _lmms("demos/Momo64-esp.mmpz", ("electronic",), "Artistic-2.0"),
+    _lmms("demos/Oglsdl-Dr8v2.mmpz", ("electronic",), "Artistic-2.0"),
+    _lmms("demos/Saber-FinalStep.mmpz", ("electronic",), "BSD-2-Clause"),
+    _lmms("demos/Settel-InnerRecreation.mmpz", ("electronic",), "Artistic-2.0"),
+    _lmms("demos/Shovon-ProgressiveHousePluckDemo.mmpz", ("electronic",), "GPL-2.0-or-later"),
+    _lmms("demos/Skiessi/Skiessi-C64.mmpz", ("electronic",), "CC-BY-SA-4.0"),
+    _lmms("demos/Socceroos-Progress.mmpz", ("electronic", "fast"), "Artistic-2.0"),
+    _lmms("demos/StrictProduction-DearJonDoe.mmp", ("electronic",), "GPL-2.0-or-later"),
+    _lmms("demos/TameAnderson-MakeMe.mmpz", ("electronic",), "Artistic-2.0"),
+    _lmms("demos/Thomasso-AxeFromThe80s.mmpz", ("electronic",), "Artistic-2.0"),
+    _lmms("shorties/Crunk(Demo).mmp", ("hip-hop",), "Artistic-2.0"),
+    _lmms("shorties/DirtyLove.mmpz", ("electronic", "fast"), "GPL-2.0-or-later"),
+    _lmms("shorties/Greshz-CoolSnip.mmpz", ("electronic",), "Artistic-2.0"),
+    _lmms("shorties/Skiessi-222.mmpz", ("electronic",), "GPL-2.0-or-later"),
+    _lmms("shorties/Surrender-Main.mmpz", ("electronic",), "Artistic-2.0"),
+)
+
+PIECES += HOLDOUT + HOLDOUT_SONGS + HOLDOUT_PROJECTS
 
 # The splits a piece may be in (SPLIT's values); "all" on the command lines means every one.
 SPLITS = ("dev", "test", "holdout")
@@ -418,7 +462,7 @@ SPLIT: dict[str, str] = {
     "hiphop-triphop_76": "dev", "electronic-techno_130": "test", "electronic-house_124": "test",
     "electronic-trance_138": "dev", "electronic-dnb_172": "dev", "pop-pop_116": "test", "pop-80spop_120": "test",
     "pop-dancepop_124": "dev", "pop-popballad_72": "dev",
-    **{piece.id: "holdout" for piece in HOLDOUT + HOLDOUT_SONGS},
+    **{piece.id: "holdout" for piece in HOLDOUT + HOLDOUT_SONGS + HOLDOUT_PROJECTS},
 }
 
 
@@ -615,6 +659,37 @@ def wad_lump(wad: Path, name: str) -> bytes:
     raise KeyError(f"{wad} has no lump {name}")
 
 
+def lmms_project(path: Path):
+    """The XML root of an LMMS project: ``.mmp`` is XML, ``.mmpz`` the same compressed by Qt (a 4-byte length, then
+    zlib)."""
+    import xml.etree.ElementTree as ElementTree
+    import zlib
+
+    data = path.read_bytes()
+    return ElementTree.fromstring(zlib.decompress(data[4:]) if path.suffix == ".mmpz" else data)
+
+
+def lmms_grid(path: Path, seconds: float) -> tuple[np.ndarray, np.ndarray]:
+    """Beat and downbeat times in seconds (up to ``seconds``) of an LMMS project: its song starts at time 0 and keeps
+    the head's tempo (quarter notes a minute) and time signature throughout (refused where the tempo is automated or
+    the signature is not x/4)."""
+    head = lmms_project(path).find("head")
+    if head is None or head.get("bpm") is None or head.get("timesig_denominator", "4") != "4":
+        raise ValueError(f"{path.name}: no fixed tempo in x/4")
+    period = 60.0 / float(head.get("bpm"))
+    beats = np.arange(0.0, seconds, period)
+    return beats, beats[::int(head.get("timesig_numerator", "4"))]
+
+
+def render_lmms(project: Path, tmp: Path) -> np.ndarray:
+    """Mono audio at ``SR`` of an LMMS project rendered from its start by LMMS itself (``lmms -r``)."""
+    wav = tmp / "out.wav"
+    # LMMS refuses to run as root without --allowroot (containers, CI).
+    subprocess.run(["lmms", "--allowroot", "-r", str(project), "-f", "wav", "-o", str(wav)], check=True,
+                   capture_output=True, env={**os.environ, "QT_QPA_PLATFORM": "offscreen"}, timeout=900)
+    return load_audio(wav)
+
+
 def render_midi(mid: Path, tmp: Path, gain: float = 0.3, rate: int = 44100,
                 options: Sequence[str] = ()) -> np.ndarray:
     """Mono audio at ``SR`` of a MIDI file rendered by fluidsynth with the General MIDI soundfont at ``gain`` and
@@ -656,13 +731,13 @@ def _write(cache: Path, piece: Piece, y: np.ndarray, beats: np.ndarray, downbeat
 def fetch(cache: Path) -> None:
     """Download, extract and render every piece not yet in ``cache`` with its ground-truth beats, downbeats and
     licence."""
-    if shutil.which("fluidsynth") is None or not SOUNDFONT.is_file() or shutil.which("mscore3") is None:
-        raise SystemExit("fluidsynth, its General MIDI soundfont and MuseScore 3 are needed: "
-                         "apt-get install fluidsynth fluid-soundfont-gm musescore3")
+    if any(shutil.which(tool) is None for tool in ("fluidsynth", "mscore3", "lmms")) or not SOUNDFONT.is_file():
+        raise SystemExit("fluidsynth, its General MIDI soundfont, MuseScore 3 and LMMS are needed: "
+                         "apt-get install fluidsynth fluid-soundfont-gm musescore3 lmms")
     fetch_packages(cache)
     (cache / "audio").mkdir(exist_ok=True)
     lags = []
-    for piece in (p for p in PIECES if p.source != "fof"):
+    for piece in (p for p in PIECES if p.source not in ("fof", "lmms")):
         done = _truth(cache, piece.id)
         if done.is_file():  # written last: the piece is complete
             lags.append(json.loads(done.read_text())["onset_lag_ms"] / 1000)
@@ -676,6 +751,14 @@ def fetch(cache: Path) -> None:
         _write(cache, piece, y, beats, downbeats, {"onset_lag_ms": round(1000 * lag)})
     lag = float(np.median(lags))
     print(f"onset-envelope lag on rendered MIDI (true offset 0): median {1000 * lag:.0f} ms")
+    for piece in (p for p in PIECES if p.source == "lmms" and not _truth(cache, p.id).is_file()):
+        project = cache / "pkgs" / piece.package / piece.path
+        with tempfile.TemporaryDirectory() as tmp:
+            y = render_lmms(project, Path(tmp))
+        beats, downbeats = lmms_grid(project, len(y) / SR)
+        # A check, not a correction: the grid's phase against the onset envelope, near the MIDI renderings' lag.
+        phase = _peak(_phase_scores(y[:int(MAX_SECONDS * SR)], beats[beats < MAX_SECONDS - 1]))[0]
+        _write(cache, piece, y, beats, downbeats, {"onset_lag_ms": round(1000 * phase)})
     for piece in (p for p in PIECES if p.source == "fof" and not _truth(cache, p.id).is_file()):
         folder = cache / "pkgs" / piece.package / piece.path
         beats, downbeats, chart = midi_grid(folder / "notes.mid", notes=_EXPERT_NOTES)

@@ -3,11 +3,13 @@
 import importlib.util
 import struct
 import sys
+import zlib
 from collections import Counter
 from pathlib import Path
 
 import mido
 import numpy as np
+import pytest
 
 _PATH = Path(__file__).resolve().parents[2] / "benchmarks" / "beat_benchmark.py"
 _SPEC = importlib.util.spec_from_file_location("beat_benchmark", _PATH)
@@ -99,6 +101,7 @@ def test_held_out_grooves_play_no_test_library_file_and_are_left_out_of_training
     assert not held_out & train_beat_tracker._library_files("test")
     assert train_beat_tracker._library_files("holdout") == held_out
     assert len(bb.HOLDOUT_SONGS) >= 40 and all(bb.SPLIT[p.id] == "holdout" for p in bb.HOLDOUT_SONGS)
+    assert len(bb.HOLDOUT_PROJECTS) >= 20 and all(bb.SPLIT[p.id] == "holdout" for p in bb.HOLDOUT_PROJECTS)
 
 
 def test_training_skips_grooves_of_held_out_files_without_rendering_them(tmp_path, capsys):
@@ -151,3 +154,17 @@ def test_a_song_comes_out_of_its_wad_file_whole(tmp_path):
     (tmp_path / "pkgs" / "freedoom").mkdir(parents=True)
     wad.rename(tmp_path / "pkgs" / "freedoom" / "test.wad")
     assert bb.piece_midi(tmp_path, piece, tmp_path).read_bytes() == song
+
+
+def test_an_lmms_project_keeps_its_tempo_and_bars_from_time_zero(tmp_path):
+    """LMMS's ``.mmpz`` is its XML compressed the Qt way (a 4-byte big-endian length, then zlib); ``.mmp`` is plain."""
+    xml = b'<lmms-project><head bpm="150" timesig_numerator="3" timesig_denominator="4"/><song/></lmms-project>'
+    packed = tmp_path / "song.mmpz"
+    packed.write_bytes(struct.pack(">I", len(xml)) + zlib.compress(xml))
+    beats, downbeats = bb.lmms_grid(packed, 2.0)
+    np.testing.assert_allclose(beats, np.arange(5) * 0.4)
+    np.testing.assert_allclose(downbeats, [0.0, 1.2])
+    plain = tmp_path / "eights.mmp"
+    plain.write_bytes(xml.replace(b'timesig_denominator="4"', b'timesig_denominator="8"'))
+    with pytest.raises(ValueError, match="x/4"):
+        bb.lmms_grid(plain, 2.0)
