@@ -98,6 +98,8 @@ import struct
 import subprocess
 import sys
 import tempfile
+import xml.etree.ElementTree as ElementTree
+import zlib
 from collections import defaultdict
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -659,12 +661,9 @@ def wad_lump(wad: Path, name: str) -> bytes:
     raise KeyError(f"{wad} has no lump {name}")
 
 
-def lmms_project(path: Path):
+def lmms_project(path: Path) -> ElementTree.Element:
     """The XML root of an LMMS project: ``.mmp`` is XML, ``.mmpz`` the same compressed by Qt (a 4-byte length, then
     zlib)."""
-    import xml.etree.ElementTree as ElementTree
-    import zlib
-
     data = path.read_bytes()
     return ElementTree.fromstring(zlib.decompress(data[4:]) if path.suffix == ".mmpz" else data)
 
