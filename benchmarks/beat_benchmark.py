@@ -69,9 +69,7 @@ productions by other hands, with their own synthesizers and samples, rendered by
 ``lmms``). A project keeps one tempo from time 0 (none automates it), so the grid is exact: the quarter notes at the
 head's tempo (as the producer counts them: the two reggae sketches at 180) and bars of the head's x/4; the two
 projects not in 4/4 (8/4, 1/1) and the tutorial are left out. The grid's phase is checked like the MIDI renderings'
-(``onset_lag_ms``: 8-28 ms on 18 of the 23; on *CPU*, *Zen* and *Progress* the hi-hats between the beats lead the
-onset envelope while the kicks' low-band onsets are on the grid; *Mauiwowi*'s kicks are syncopated in the project
-itself; on *Surrender-Main* the low-band onsets come 0.15 of a beat after the grid, not explained).
+(``onset_lag_ms``, stored per piece; what it showed is in docs/experiments/2026-12-07-offbeats-and-six-eight.md).
 
 Beats count from the first to the last moment the audio is within 30 dB of its loudest 50-ms frame, so silent
 intros and tails carry no beats (nor downbeats). ``run`` scores each tracker with ``mir_eval.beat`` without
@@ -179,8 +177,8 @@ def _freedoom(wad: str, lump: str, kinds: tuple[str, ...]) -> Piece:
 
 def _lmms(name: str, kinds: tuple[str, ...], licence: str) -> Piece:
     """LMMS's demo project ``name`` (``demos/Saber-FinalStep.mmpz``), named ``holdout-lmms-saber-finalstep``."""
-    stem = Path(name).name.split(".")[0]
-    return Piece(f"holdout-lmms-{stem.lower().replace('(', '').replace(')', '')}", kinds, "lmms-common",
+    stem = Path(name).stem.lower().replace("(", "").replace(")", "")
+    return Piece(f"holdout-lmms-{stem}", kinds, "lmms-common",
                  f"{_LMMS}/{name}", licence, "lmms")
 
 
