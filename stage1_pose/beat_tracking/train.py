@@ -108,14 +108,15 @@ def augmented_excerpt(song: Song, frames: int, config: TrainConfig,
 
 
 def train(songs: list[Song], preset: str = "small", config: TrainConfig | None = None,
-          folder: Path | None = None) -> tuple[BeatTCN, dict]:
-    """Train a :class:`BeatTCN` of ``preset`` on ``songs`` (excerpts drawn in proportion to song length) for the
-    budget; returns the model in eval mode and a log (steps, minutes, final loss, the configs). With ``folder``,
-    the model so far is saved there every ``_SAVE_MINUTES``, so a stopped training leaves a usable model."""
+          folder: Path | None = None, init: BeatTCN | None = None) -> tuple[BeatTCN, dict]:
+    """Train a :class:`BeatTCN` of ``preset`` (or go on training ``init``, a trained network) on ``songs`` (excerpts
+    drawn in proportion to song length) for the budget; returns the model in eval mode and a log (steps, minutes,
+    final loss, the configs). With ``folder``, the model so far is saved there every ``_SAVE_MINUTES``, so a stopped
+    training leaves a usable model."""
     config = config or TrainConfig()
     torch.manual_seed(config.seed)
     rng = np.random.default_rng(config.seed)
-    model = BeatTCN(PRESETS[preset])
+    model = init if init is not None else BeatTCN(PRESETS[preset])
     opt = torch.optim.Adam(model.parameters(), lr=config.lr)
     weights = np.array([len(s.mel) for s in songs], np.float64)
     weights /= weights.sum()

@@ -21,7 +21,7 @@ from stage1_pose.beat_tracking.tracker import (
     support,
     track,
 )
-from stage1_pose.beat_tracking.train import Song, TrainConfig, augmented_excerpt, targets
+from stage1_pose.beat_tracking.train import Song, TrainConfig, augmented_excerpt, targets, train
 from stage1_pose.beats import BEAT_TRACKERS, song_beats
 
 REAL_SONG = Path(__file__).parents[2] / "data" / "real_song" / "escape_from_chaosland_40-65s"
@@ -50,14 +50,31 @@ def test_targets_mark_beats_downbeats_and_their_neighbours():
     assert y[0, 0] == 1 and y[7, 0] == 1
 
 
-def test_augmented_excerpt_keeps_beats_on_their_onsets():
-    """Clicks in the mel frames stay under the beat targets however the excerpt is stretched and shifted (a click
-    spans three frames, as a 93-ms window smears an onset; a stretch may step over a single frame)."""
+def _click_song() -> Song:
+    """A minute of clicks at 120 BPM in the mel frames (a click spans three frames, as a 93-ms window smears an
+    onset), bars of four."""
     beats = np.arange(0.5, 60.0, 0.5)
     mel = np.full((int(61 * FPS), N_MELS), -60.0, np.float32)
     for offset in (-1, 0, 1):
         mel[frame_of(beats) + offset] = 0.0
-    song = Song(mel.astype(np.float16), beats, beats[::4])
+    return Song(mel.astype(np.float16), beats, beats[::4])
+
+
+def test_a_network_learns_clicks_and_training_goes_on_from_its_weights():
+    """The fine-tune of the shipped networks: ``train(init=...)`` starts where the given network stopped, so its
+    first batch's loss is that of a trained network, not of a fresh one."""
+    song = _click_song()
+    one_step = TrainConfig(minutes=1.0, steps=1, batch=4, excerpt_frames=400, noise_probability=0.0, lr=1e-2)
+    fresh_loss = train([song], "tiny", one_step)[1]["loss"]
+    trained, _ = train([song], "tiny", TrainConfig(**{**one_step.__dict__, "steps": 60}))
+    going_on, log = train([song], "tiny", one_step, init=trained)
+    assert going_on is trained and log["loss"] < 0.25 * fresh_loss
+
+
+def test_augmented_excerpt_keeps_beats_on_their_onsets():
+    """Clicks in the mel frames stay under the beat targets however the excerpt is stretched and shifted (a click
+    spans three frames; a stretch may step over a single frame)."""
+    song = _click_song()
     rng = np.random.default_rng(0)
     config = TrainConfig(noise_probability=0.0)
     for _ in range(5):
