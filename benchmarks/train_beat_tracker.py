@@ -195,7 +195,8 @@ def build_corpus(cache: Path, corpus: Path, train_split: bool = True) -> list[Pa
                   np.array(info["downbeats"]))
         files.append(out)
     rng = np.random.default_rng(_TRAIN_SPLIT_SEED)
-    for piece in sorted((p for p in PIECES if SPLIT[p.id] == "train" and train_split), key=lambda p: p.id):
+    train_pieces = sorted((p for p in PIECES if SPLIT[p.id] == "train"), key=lambda p: p.id) if train_split else []
+    for piece in train_pieces:
         out = corpus / f"{piece.id}.npz"
         with tempfile.TemporaryDirectory() as tmp:
             mid = piece_midi(cache, piece, Path(tmp))
